@@ -1,0 +1,29 @@
+//! Pure-Rust SAH BVH backend.
+use super::{Accel, AccelError, Geometry, Hit, Ray, PACKET};
+
+pub struct Bvh;
+
+impl Bvh {
+    pub fn build(geometry: &Geometry) -> Result<Self, AccelError> {
+        let _ = geometry;
+        todo!("bvh")
+    }
+}
+
+impl Accel for Bvh {
+    fn intersect(&self, _ray: &Ray) -> Option<Hit> {
+        todo!()
+    }
+    fn occluded(&self, _ray: &Ray) -> bool {
+        todo!()
+    }
+    fn intersect8(&self, _rays: &[Ray; PACKET], _active: u8, _hits: &mut [Option<Hit>; PACKET]) {
+        todo!()
+    }
+    fn occluded8(&self, _rays: &[Ray; PACKET], _active: u8) -> u8 {
+        todo!()
+    }
+    fn name(&self) -> &'static str {
+        "bvh"
+    }
+}

@@ -1,0 +1,201 @@
+//! Ray queries. One interface ([`Accel`]), two backends: the system Embree (`embree.rs`, the only
+//! file that calls it) and a pure-Rust SAH BVH (`bvh.rs`).
+//!
+//! Geometry is one flat triangle soup plus a list of analytic spheres; a [`Hit`] names its
+//! [`Primitive`] by index into those lists, so the scene maps a hit to its material in O(1).
+
+use glam::Vec3;
+use thiserror::Error;
+
+pub mod bvh;
+#[cfg(feature = "embree")]
+pub mod embree;
+
+/// A ray segment `origin + t * dir` for `t` in `[tmin, tmax]`. `dir` need not be normalised,
+/// `t` is measured in units of `dir`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub dir: Vec3,
+    pub tmin: f32,
+    pub tmax: f32,
+}
+
+/// Fraction of a shadow segment left out at its far end so the target surface does not occlude
+/// itself (pbrt's ShadowEpsilon).
+const SHADOW_EPSILON: f32 = 1e-4;
+
+impl Ray {
+    pub fn new(origin: Vec3, dir: Vec3) -> Self {
+        Ray { origin, dir, tmin: 0.0, tmax: f32::INFINITY }
+    }
+
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + t * self.dir
+    }
+
+    /// A ray leaving the surface point `p` (geometric normal `ng`) in direction `dir`, its origin
+    /// offset off the surface so it cannot hit the surface it starts on.
+    pub fn spawn(p: Vec3, ng: Vec3, dir: Vec3) -> Self {
+        Ray::new(offset_ray_origin(p, ng, dir), dir)
+    }
+
+    /// A shadow segment from surface point `p` (normal `ng`) to the point `target`, which need
+    /// not be on a surface. `dir` is `target - origin` and `tmax` stops just short of 1.
+    pub fn spawn_to(p: Vec3, ng: Vec3, target: Vec3) -> Self {
+        let origin = offset_ray_origin(p, ng, target - p);
+        Ray { origin, dir: target - origin, tmin: 0.0, tmax: 1.0 - SHADOW_EPSILON }
+    }
+
+    /// A shadow segment between two surface points, both ends offset off their surfaces.
+    pub fn spawn_between(p: Vec3, ng: Vec3, q: Vec3, ng_q: Vec3) -> Self {
+        let origin = offset_ray_origin(p, ng, q - p);
+        let target = offset_ray_origin(q, ng_q, p - q);
+        Ray { origin, dir: target - origin, tmin: 0.0, tmax: 1.0 - SHADOW_EPSILON }
+    }
+}
+
+/// Offset of a ray origin along the geometric normal, scaled to the magnitude of the
+/// coordinates: f32 positions carry a relative error of about 2^-24 of their largest
+/// component, so a fixed epsilon is either too small far from the origin or too large near it.
+pub fn offset_ray_origin(p: Vec3, ng: Vec3, dir: Vec3) -> Vec3 {
+    const RELATIVE: f32 = 1.0 / 16384.0 / 32.0; // ~1.9e-6: a few dozen ulps of the magnitude
+    const ABSOLUTE: f32 = 1e-6;
+    let magnitude = p.abs().max_element();
+    let offset = ng * (magnitude * RELATIVE + ABSOLUTE);
+    if dir.dot(ng) < 0.0 {
+        p - offset
+    } else {
+        p + offset
+    }
+}
+
+/// Which primitive a ray hit: the index of a triangle or of a sphere in the [`Geometry`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Primitive {
+    Triangle(u32),
+    Sphere(u32),
+}
+
+/// The closest (or any) intersection of a ray.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    /// Ray parameter of the hit, in units of the ray's `dir`.
+    pub t: f32,
+    pub primitive: Primitive,
+    /// Barycentrics of a triangle hit: `p = (1 - u - v) p0 + u p1 + v p2`; zero for spheres.
+    pub u: f32,
+    pub v: f32,
+    /// Unit geometric normal: for a triangle `normalize((p1 - p0) x (p2 - p0))` (the side from
+    /// which its vertices are counter-clockwise), for a sphere the outward normal.
+    pub ng: Vec3,
+}
+
+/// An analytic sphere.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Sphere {
+    pub center: Vec3,
+    pub radius: f32,
+}
+
+/// Everything the backends intersect: a triangle soup over shared vertices, and spheres.
+#[derive(Clone, Debug, Default)]
+pub struct Geometry {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+    pub spheres: Vec<Sphere>,
+}
+
+impl Geometry {
+    pub fn triangle_vertices(&self, index: u32) -> [Vec3; 3] {
+        let [a, b, c] = self.triangles[index as usize];
+        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+    }
+
+    /// Axis-aligned bounds `(min, max)` of all primitives; `None` when there are none.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        let mut min = Vec3::splat(f32::INFINITY);
+        let mut max = Vec3::splat(f32::NEG_INFINITY);
+        for tri in &self.triangles {
+            for &i in tri {
+                let p = self.positions[i as usize];
+                min = min.min(p);
+                max = max.max(p);
+            }
+        }
+        for s in &self.spheres {
+            min = min.min(s.center - Vec3::splat(s.radius));
+            max = max.max(s.center + Vec3::splat(s.radius));
+        }
+        (min.x <= max.x).then_some((min, max))
+    }
+}
+
+/// Packet width of the 8-ray queries.
+pub const PACKET: usize = 8;
+
+/// Ray queries against a committed scene. Implementations are immutable after building and
+/// shared by all render threads.
+pub trait Accel: Send + Sync {
+    /// Closest hit with `t` in `[ray.tmin, ray.tmax]`.
+    fn intersect(&self, ray: &Ray) -> Option<Hit>;
+
+    /// Whether anything is hit with `t` in `[ray.tmin, ray.tmax]`.
+    fn occluded(&self, ray: &Ray) -> bool;
+
+    /// Closest hits of up to 8 rays; bit `i` of `active` selects `rays[i]`. Inactive lanes of
+    /// `hits` are set to `None`. Returns exactly what 8 calls of [`Accel::intersect`] return.
+    fn intersect8(&self, rays: &[Ray; PACKET], active: u8, hits: &mut [Option<Hit>; PACKET]);
+
+    /// Occlusion of up to 8 rays; returns a mask with bit `i` set where active ray `i` is occluded.
+    fn occluded8(&self, rays: &[Ray; PACKET], active: u8) -> u8;
+
+    /// The backend's name, for metadata and benchmarks.
+    fn name(&self) -> &'static str;
+}
+
+/// The backends, chosen at run time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum AccelKind {
+    Embree,
+    Bvh,
+}
+
+impl AccelKind {
+    /// Embree when it was built in, the Rust BVH otherwise.
+    pub fn default_kind() -> Self {
+        if cfg!(feature = "embree") {
+            AccelKind::Embree
+        } else {
+            AccelKind::Bvh
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            AccelKind::Embree => "embree",
+            AccelKind::Bvh => "bvh",
+        }
+    }
+}
+
+#[derive(Debug, Error)]
+pub enum AccelError {
+    #[error("Embree error {code}: {message}")]
+    Embree { code: u32, message: String },
+    #[error("this build has no Embree backend (built without the `embree` feature); use --accel bvh")]
+    EmbreeNotBuilt,
+    #[error("invalid geometry: {0}")]
+    InvalidGeometry(String),
+}
+
+/// Builds the chosen backend over `geometry`.
+pub fn build(kind: AccelKind, geometry: &Geometry) -> Result<Box<dyn Accel>, AccelError> {
+    match kind {
+        AccelKind::Bvh => Ok(Box::new(bvh::Bvh::build(geometry)?)),
+        #[cfg(feature = "embree")]
+        AccelKind::Embree => Ok(Box::new(embree::EmbreeScene::build(geometry)?)),
+        #[cfg(not(feature = "embree"))]
+        AccelKind::Embree => Err(AccelError::EmbreeNotBuilt),
+    }
+}

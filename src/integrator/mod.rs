@@ -1,0 +1,93 @@
+//! Integrators. Each renders one iteration at a time into a per-pixel frame: one eye sub-path
+//! per pixel and, for the bidirectional ones, one light sub-path per pixel (001 sec. 2.3).
+
+use crate::color::Rgb;
+use crate::render::RenderOptions;
+use crate::scene::{Camera, Scene};
+
+pub mod pt;
+
+/// The rendering techniques.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
+)]
+#[serde(rename_all = "kebab-case")]
+pub enum Technique {
+    /// Path tracing with next-event estimation.
+    Pt,
+    /// Light tracing, splatting to the camera.
+    Lt,
+    /// Bidirectional path tracing.
+    Bpt,
+    /// Progressive photon mapping.
+    Ppm,
+    /// Bidirectional photon mapping.
+    Bpm,
+    /// Vertex connection and merging.
+    Vcm,
+    /// Unbiased photon gathering, merging from the light side.
+    Upg,
+    /// Unbiased photon gathering, merging from the camera side.
+    UpgCamera,
+}
+
+impl Technique {
+    pub fn name(self) -> &'static str {
+        match self {
+            Technique::Pt => "pt",
+            Technique::Lt => "lt",
+            Technique::Bpt => "bpt",
+            Technique::Ppm => "ppm",
+            Technique::Bpm => "bpm",
+            Technique::Vcm => "vcm",
+            Technique::Upg => "upg",
+            Technique::UpgCamera => "upg-camera",
+        }
+    }
+}
+
+/// Counters an iteration reports besides its image.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IterationStats {
+    /// Samples dropped for being NaN or infinite.
+    pub dropped_samples: u64,
+    /// Rays traced (closest-hit and shadow), for the samples-per-second display.
+    pub rays: u64,
+}
+
+/// Everything an integrator needs that does not change between iterations.
+pub struct RenderContext<'a> {
+    pub scene: &'a Scene,
+    pub camera: Camera,
+    pub options: &'a RenderOptions,
+}
+
+impl RenderContext<'_> {
+    /// Path-length bound in segments; `u32::MAX` when unbounded.
+    pub fn max_path_length(&self) -> u32 {
+        match self.options.max_path_length.unwrap_or(self.scene.defaults.max_path_length) {
+            0 => u32::MAX,
+            n => n,
+        }
+    }
+}
+
+/// One technique. `render_iteration` adds this iteration's estimate of every pixel's
+/// radiance into `frame` (zeroed by the caller), using only random streams seeded from
+/// (seed, iteration, pixel), so the result does not depend on the thread count.
+pub trait Integrator: Send + Sync {
+    fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats;
+
+    /// Technique-specific statistics for the metadata and the progress line.
+    fn statistics(&self) -> Vec<(String, String)> {
+        Vec::new()
+    }
+}
+
+/// Creates the integrator for `ctx.options.technique`.
+pub fn create<'a>(ctx: RenderContext<'a>) -> Box<dyn Integrator + 'a> {
+    match ctx.options.technique {
+        Technique::Pt => Box::new(pt::PathTracer::new(ctx)),
+        other => todo!("{}", other.name()),
+    }
+}

@@ -1,0 +1,9 @@
+//! Random numbers and the warps that turn them into directions, points and choices.
+
+mod distribution;
+mod rng;
+mod warp;
+
+pub use distribution::Distribution1D;
+pub use rng::{Rng, Stream};
+pub use warp::*;
