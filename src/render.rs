@@ -49,3 +49,28 @@ pub struct Execution {
     pub accel: AccelKind,
     pub threads: Option<usize>,
 }
+
+/// Renders `iterations` iterations of `options.technique` and returns the film: the library
+/// call behind `vmerge render --iterations N` without progress, time limit or files.
+pub fn render_iterations(
+    scene: &crate::scene::Scene,
+    options: &RenderOptions,
+    iterations: u64,
+) -> Result<crate::film::Film, crate::scene::SceneError> {
+    let [width, height] = options.resolution.unwrap_or(scene.defaults.resolution);
+    let camera = crate::scene::Camera::new(
+        scene.camera(options.camera.as_deref())?,
+        width,
+        height,
+    );
+    let mut film = crate::film::Film::new(width, height);
+    let mut integrator =
+        crate::integrator::create(crate::integrator::RenderContext { scene, camera, options });
+    let mut frame = vec![crate::color::Rgb::BLACK; film.pixel_count()];
+    for iteration in 0..iterations {
+        frame.fill(crate::color::Rgb::BLACK);
+        integrator.render_iteration(iteration, &mut frame);
+        film.add_iteration(&frame);
+    }
+    Ok(film)
+}
