@@ -58,14 +58,13 @@ pub fn render_iterations(
     iterations: u64,
 ) -> Result<crate::film::Film, crate::scene::SceneError> {
     let [width, height] = options.resolution.unwrap_or(scene.defaults.resolution);
-    let camera = crate::scene::Camera::new(
-        scene.camera(options.camera.as_deref())?,
-        width,
-        height,
-    );
+    let camera = crate::scene::Camera::new(scene.camera(options.camera.as_deref())?, width, height);
     let mut film = crate::film::Film::new(width, height);
-    let mut integrator =
-        crate::integrator::create(crate::integrator::RenderContext { scene, camera, options });
+    let mut integrator = crate::integrator::create(crate::integrator::RenderContext {
+        scene,
+        camera,
+        options,
+    });
     let mut frame = vec![crate::color::Rgb::BLACK; film.pixel_count()];
     for iteration in 0..iterations {
         frame.fill(crate::color::Rgb::BLACK);

@@ -27,7 +27,12 @@ const SHADOW_EPSILON: f32 = 1e-4;
 
 impl Ray {
     pub fn new(origin: Vec3, dir: Vec3) -> Self {
-        Ray { origin, dir, tmin: 0.0, tmax: f32::INFINITY }
+        Ray {
+            origin,
+            dir,
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+        }
     }
 
     pub fn at(&self, t: f32) -> Vec3 {
@@ -44,14 +49,24 @@ impl Ray {
     /// not be on a surface. `dir` is `target - origin` and `tmax` stops just short of 1.
     pub fn spawn_to(p: Vec3, ng: Vec3, target: Vec3) -> Self {
         let origin = offset_ray_origin(p, ng, target - p);
-        Ray { origin, dir: target - origin, tmin: 0.0, tmax: 1.0 - SHADOW_EPSILON }
+        Ray {
+            origin,
+            dir: target - origin,
+            tmin: 0.0,
+            tmax: 1.0 - SHADOW_EPSILON,
+        }
     }
 
     /// A shadow segment between two surface points, both ends offset off their surfaces.
     pub fn spawn_between(p: Vec3, ng: Vec3, q: Vec3, ng_q: Vec3) -> Self {
         let origin = offset_ray_origin(p, ng, q - p);
         let target = offset_ray_origin(q, ng_q, p - q);
-        Ray { origin, dir: target - origin, tmin: 0.0, tmax: 1.0 - SHADOW_EPSILON }
+        Ray {
+            origin,
+            dir: target - origin,
+            tmin: 0.0,
+            tmax: 1.0 - SHADOW_EPSILON,
+        }
     }
 }
 
@@ -109,7 +124,11 @@ pub struct Geometry {
 impl Geometry {
     pub fn triangle_vertices(&self, index: u32) -> [Vec3; 3] {
         let [a, b, c] = self.triangles[index as usize];
-        [self.positions[a as usize], self.positions[b as usize], self.positions[c as usize]]
+        [
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        ]
     }
 
     /// Axis-aligned bounds `(min, max)` of all primitives; `None` when there are none.
@@ -183,7 +202,9 @@ impl AccelKind {
 pub enum AccelError {
     #[error("Embree error {code}: {message}")]
     Embree { code: u32, message: String },
-    #[error("this build has no Embree backend (built without the `embree` feature); use --accel bvh")]
+    #[error(
+        "this build has no Embree backend (built without the `embree` feature); use --accel bvh"
+    )]
     EmbreeNotBuilt,
     #[error("invalid geometry: {0}")]
     InvalidGeometry(String),

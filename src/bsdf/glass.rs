@@ -1,1 +1,76 @@
-//! glass
+//! Smooth dielectric: Fresnel reflection and refraction, each a delta lobe chosen with the
+//! probability of its Fresnel weight (pbrt-v4's DielectricBxDF).
+
+use super::{reflect_local, BsdfSample, TransportMode};
+use crate::color::Rgb;
+use glam::Vec3;
+
+/// Unpolarised Fresnel reflectance for light arriving at `cos_i` (local z of the incident
+/// direction, negative from inside) on an interface of relative index `eta` = n_inside /
+/// n_outside.
+pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
+    let (cos_i, eta) = if cos_i < 0.0 {
+        (-cos_i, 1.0 / eta)
+    } else {
+        (cos_i, eta)
+    };
+    let cos_i = cos_i.min(1.0);
+    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let parallel = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
+    let perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
+    0.5 * (parallel * parallel + perpendicular * perpendicular)
+}
+
+/// Refraction of local `w` through the interface; `eta` = n_inside / n_outside. Returns the
+/// transmitted direction and the relative index n_t / n_i across the crossing, or `None` under
+/// total internal reflection.
+pub fn refract_local(w: Vec3, eta: f32) -> Option<(Vec3, f32)> {
+    let (cos_i, eta, sign) = if w.z < 0.0 {
+        (-w.z, 1.0 / eta, -1.0)
+    } else {
+        (w.z, eta, 1.0)
+    };
+    let sin2_t = (1.0 - cos_i * cos_i).max(0.0) / (eta * eta);
+    if sin2_t >= 1.0 {
+        return None;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let t = -w / eta + Vec3::new(0.0, 0.0, sign * (cos_i / eta - cos_t));
+    Some((t.normalize(), eta))
+}
+
+/// `wo` local to the outward normal (negative z when leaving the glass).
+pub(super) fn sample(ior: f32, wo: Vec3, mode: TransportMode, u: f32) -> Option<BsdfSample> {
+    let reflectance = fresnel_dielectric(wo.z, ior);
+    if u < reflectance {
+        let wi = reflect_local(wo);
+        // f * |cos| / pdf = 1: the Fresnel weight cancels its own choice probability.
+        return Some(BsdfSample {
+            wi,
+            f: Rgb::splat(reflectance / wi.z.abs()),
+            pdf_w: reflectance,
+            rev_pdf_w: reflectance,
+            delta: true,
+        });
+    }
+    let (wi, eta) = refract_local(wo, ior)?;
+    let transmittance = 1.0 - reflectance;
+    // Radiance is compressed into the narrower solid angle of the denser medium: looking from
+    // the side of `wo` (index n_i) into the side of `wi` (index n_t), radiance scales by
+    // (n_i / n_t)^2. Importance does not (the adjoint BSDF, Veach's thesis sec. 5.2).
+    let scale = match mode {
+        TransportMode::Radiance => 1.0 / (eta * eta),
+        TransportMode::Importance => 1.0,
+    };
+    Some(BsdfSample {
+        wi,
+        f: Rgb::splat(transmittance * scale / wi.z.abs()),
+        pdf_w: transmittance,
+        rev_pdf_w: transmittance,
+        delta: true,
+    })
+}

@@ -28,11 +28,21 @@ mod phong;
 /// The scattering part of a material.
 #[derive(Clone, Debug, PartialEq)]
 pub enum MaterialKind {
-    Lambert { kd: Rgb },
+    Lambert {
+        kd: Rgb,
+    },
     /// Lafortune's energy-conserving Phong, f = kd/pi + ks (n+2)/(2 pi) cos^n(alpha) (000 eq. 3.1).
-    Phong { kd: Rgb, ks: Rgb, exponent: f32 },
-    Mirror { ks: Rgb },
-    Glass { ior: f32 },
+    Phong {
+        kd: Rgb,
+        ks: Rgb,
+        exponent: f32,
+    },
+    Mirror {
+        ks: Rgb,
+    },
+    Glass {
+        ior: f32,
+    },
 }
 
 /// A named material: how it scatters and what it emits (radiance, one-sided, on the side the
@@ -93,25 +103,55 @@ impl<'a> Bsdf<'a> {
     /// The BSDF of `kind` at a vertex with unit geometric normal `ng`, seen from unit `wo`.
     /// `None` when `wo` lies (numerically) in the surface plane, where nothing is defined.
     pub fn new(kind: &'a MaterialKind, ng: Vec3, wo: Vec3, mode: TransportMode) -> Option<Self> {
-        let _ = (kind, ng, wo, mode);
-        todo!("bsdf")
+        let cos_o = ng.dot(wo);
+        if cos_o.abs() < 1e-6 {
+            return None;
+        }
+        let two_sided = !matches!(kind, MaterialKind::Glass { .. });
+        let z = if two_sided && cos_o < 0.0 { -ng } else { ng };
+        let frame = Frame::from_z(z);
+        Some(Bsdf {
+            kind,
+            frame,
+            wo_local: frame.to_local(wo),
+            mode,
+        })
     }
 
     /// Value and pdfs for `wi` (unit), non-delta lobes only.
     pub fn eval(&self, wi: Vec3) -> BsdfEval {
-        let _ = wi;
-        todo!("bsdf")
+        let wi = self.frame.to_local(wi);
+        match *self.kind {
+            MaterialKind::Lambert { kd } => lambert::eval(kd, self.wo_local, wi),
+            MaterialKind::Phong { kd, ks, exponent } => {
+                phong::Phong::new(kd, ks, exponent).eval(self.wo_local, wi)
+            }
+            MaterialKind::Mirror { .. } | MaterialKind::Glass { .. } => BsdfEval::ZERO,
+        }
     }
 
     /// Samples `wi` with the random numbers `u` (`u[0]` picks the lobe).
     pub fn sample(&self, u: [f32; 3]) -> Option<BsdfSample> {
-        let _ = u;
-        todo!("bsdf")
+        let local = match *self.kind {
+            MaterialKind::Lambert { kd } => lambert::sample(kd, self.wo_local, [u[1], u[2]]),
+            MaterialKind::Phong { kd, ks, exponent } => {
+                phong::Phong::new(kd, ks, exponent).sample(self.wo_local, u)
+            }
+            MaterialKind::Mirror { ks } => mirror::sample(ks, self.wo_local),
+            MaterialKind::Glass { ior } => glass::sample(ior, self.wo_local, self.mode, u[0]),
+        }?;
+        Some(BsdfSample {
+            wi: self.frame.to_world(local.wi),
+            ..local
+        })
     }
 
     /// True when every lobe is a delta (mirror, glass): no connection or merge can use it.
     pub fn is_delta(&self) -> bool {
-        todo!("bsdf")
+        matches!(
+            self.kind,
+            MaterialKind::Mirror { .. } | MaterialKind::Glass { .. }
+        )
     }
 
     /// `|cos|` between the geometric normal and `w`.
@@ -122,11 +162,23 @@ impl<'a> Bsdf<'a> {
     /// Probability of continuing the path at this vertex under Russian roulette: the
     /// material's largest albedo channel, capped at 1.
     pub fn continuation_probability(&self) -> f32 {
-        todo!("bsdf")
+        let albedo = match *self.kind {
+            MaterialKind::Lambert { kd } => kd,
+            MaterialKind::Phong { kd, ks, .. } => kd + ks,
+            MaterialKind::Mirror { ks } => ks,
+            MaterialKind::Glass { .. } => Rgb::WHITE,
+        };
+        albedo.max_component().min(1.0)
     }
 
     pub fn kind(&self) -> &MaterialKind {
         self.kind
+    }
+
+    /// The shading frame: `z` is the geometric normal, on the side of `wo` for two-sided
+    /// materials.
+    pub fn frame(&self) -> &Frame {
+        &self.frame
     }
 
     pub fn mode(&self) -> TransportMode {
@@ -136,4 +188,17 @@ impl<'a> Bsdf<'a> {
     pub fn wo_local(&self) -> Vec3 {
         self.wo_local
     }
+}
+
+impl BsdfEval {
+    pub const ZERO: BsdfEval = BsdfEval {
+        f: Rgb::BLACK,
+        pdf_w: 0.0,
+        rev_pdf_w: 0.0,
+    };
+}
+
+/// Mirror reflection of a local direction about the normal.
+fn reflect_local(w: Vec3) -> Vec3 {
+    Vec3::new(-w.x, -w.y, w.z)
 }

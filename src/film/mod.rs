@@ -15,7 +15,12 @@ pub struct Film {
 
 impl Film {
     pub fn new(width: u32, height: u32) -> Self {
-        Film { width, height, sum: vec![[0.0; 3]; width as usize * height as usize], iterations: 0 }
+        Film {
+            width,
+            height,
+            sum: vec![[0.0; 3]; width as usize * height as usize],
+            iterations: 0,
+        }
     }
 
     pub fn pixel_count(&self) -> usize {
@@ -35,10 +40,20 @@ impl Film {
 
     /// The mean radiance of each pixel.
     pub fn mean(&self) -> Vec<Rgb> {
-        let scale = if self.iterations > 0 { 1.0 / self.iterations as f64 } else { 0.0 };
+        let scale = if self.iterations > 0 {
+            1.0 / self.iterations as f64
+        } else {
+            0.0
+        };
         self.sum
             .iter()
-            .map(|s| Rgb::new((s[0] * scale) as f32, (s[1] * scale) as f32, (s[2] * scale) as f32))
+            .map(|s| {
+                Rgb::new(
+                    (s[0] * scale) as f32,
+                    (s[1] * scale) as f32,
+                    (s[2] * scale) as f32,
+                )
+            })
             .collect()
     }
 

@@ -65,7 +65,11 @@ pub struct RenderContext<'a> {
 impl RenderContext<'_> {
     /// Path-length bound in segments; `u32::MAX` when unbounded.
     pub fn max_path_length(&self) -> u32 {
-        match self.options.max_path_length.unwrap_or(self.scene.defaults.max_path_length) {
+        match self
+            .options
+            .max_path_length
+            .unwrap_or(self.scene.defaults.max_path_length)
+        {
             0 => u32::MAX,
             n => n,
         }

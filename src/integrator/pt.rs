@@ -1,6 +1,14 @@
-//! Path tracing with next-event estimation.
+//! Path tracing with next-event estimation, combined with BSDF sampling by multiple importance
+//! sampling (power heuristic with exponent `beta`; 000 sec. 2.2, Veach's thesis ch. 9).
+
 use super::{Integrator, IterationStats, RenderContext};
+use crate::accel::Ray;
+use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
+use crate::film::add_sample;
+use crate::sampling::{mis_power, Rng, Stream};
+use crate::scene::SurfaceHit;
+use rayon::prelude::*;
 
 pub struct PathTracer<'a> {
     ctx: RenderContext<'a>,
@@ -10,11 +18,170 @@ impl<'a> PathTracer<'a> {
     pub fn new(ctx: RenderContext<'a>) -> Self {
         PathTracer { ctx }
     }
+
+    /// Power-heuristic weight of a strategy with density `pdf` against one with `other`.
+    fn mis(&self, pdf: f32, other: f32) -> f32 {
+        let beta = self.ctx.options.beta;
+        let a = mis_power(pdf, beta);
+        a / (a + mis_power(other, beta))
+    }
+
+    /// Radiance arriving at the camera through raster point `(x, y)`, and the rays traced.
+    fn radiance(&self, mut ray: Ray, rng: &mut Rng) -> (Rgb, u64) {
+        let scene = self.ctx.scene;
+        let max_length = self.ctx.max_path_length();
+        let roulette = self.ctx.options.roulette;
+        let mut radiance = Rgb::BLACK;
+        let mut throughput = Rgb::WHITE;
+        let mut rays = 0u64;
+        // pdf (solid angle) of the BSDF sample that produced `ray`, and whether it was a delta
+        // lobe (or the camera), in which case light sampling could not have produced it.
+        let mut last_pdf_w = 1.0f32;
+        let mut last_delta = true;
+        // Segments of the path so far, camera included.
+        let mut length = 1u32;
+        loop {
+            rays += 1;
+            let Some(hit) = scene.intersect(&ray) else {
+                if let Some(received) = scene.lights.background(ray.dir) {
+                    let weight = if last_delta {
+                        1.0
+                    } else {
+                        let pick = scene.lights.pick_pdf(scene.lights.sky().unwrap_or(0));
+                        self.mis(last_pdf_w, received.direct_pdf_a * pick)
+                    };
+                    radiance += throughput * received.radiance * weight;
+                }
+                break;
+            };
+            radiance += throughput * self.emitted(&ray, &hit, last_pdf_w, last_delta);
+            if length >= max_length {
+                break;
+            }
+            let material = &scene.material(hit.material).kind;
+            let Some(bsdf) = Bsdf::new(material, hit.ng, -ray.dir, TransportMode::Radiance) else {
+                break;
+            };
+            if !bsdf.is_delta() {
+                let (light, shadow_rays) = self.sample_light(&hit, &bsdf, rng);
+                radiance += throughput * light;
+                rays += shadow_rays;
+            }
+            let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+            let Some(sample) = bsdf.sample(u) else {
+                break;
+            };
+            throughput *= sample.f * (bsdf.cos_theta(sample.wi) / sample.pdf_w);
+            if length >= roulette {
+                let continue_probability = bsdf.continuation_probability();
+                if rng.next_f32() >= continue_probability {
+                    break;
+                }
+                throughput /= continue_probability;
+            }
+            if throughput.is_black() {
+                break;
+            }
+            last_pdf_w = sample.pdf_w;
+            last_delta = sample.delta;
+            ray = Ray::spawn(hit.position, hit.ng, sample.wi);
+            length += 1;
+        }
+        (radiance, rays)
+    }
+
+    /// Emission of the surface hit by `ray`, weighted against light sampling.
+    fn emitted(&self, ray: &Ray, hit: &SurfaceHit, last_pdf_w: f32, last_delta: bool) -> Rgb {
+        let lights = &self.ctx.scene.lights;
+        let Some(index) = hit.light else {
+            return Rgb::BLACK;
+        };
+        let Some(received) = lights.get(index).radiance(ray.dir, hit.ng) else {
+            return Rgb::BLACK;
+        };
+        if last_delta {
+            return received.radiance;
+        }
+        // The light-sampling density of this point, per solid angle at the previous vertex.
+        let distance = hit.hit.t * ray.dir.length();
+        let cos_at_light = hit.ng.dot(-ray.dir.normalize());
+        let direct_pdf_w =
+            received.direct_pdf_a * lights.pick_pdf(index) * distance * distance / cos_at_light;
+        received.radiance * self.mis(last_pdf_w, direct_pdf_w)
+    }
+
+    /// Next-event estimation: one light sample, weighted against BSDF sampling.
+    fn sample_light(&self, hit: &SurfaceHit, bsdf: &Bsdf, rng: &mut Rng) -> (Rgb, u64) {
+        let scene = self.ctx.scene;
+        let u_pick = rng.next_f32();
+        let u = rng.next_2d();
+        let Some((index, pick)) = scene.lights.pick(u_pick) else {
+            return (Rgb::BLACK, 0);
+        };
+        let light = scene.lights.get(index);
+        let Some(illumination) = light.illuminate(hit.position, u) else {
+            return (Rgb::BLACK, 0);
+        };
+        let eval = bsdf.eval(illumination.dir_to_light);
+        if eval.f.is_black() {
+            return (Rgb::BLACK, 0);
+        }
+        let shadow = if illumination.distance.is_finite() {
+            if light.is_delta() {
+                Ray::spawn_to(hit.position, hit.ng, illumination.position)
+            } else {
+                Ray::spawn_between(
+                    hit.position,
+                    hit.ng,
+                    illumination.position,
+                    illumination.normal,
+                )
+            }
+        } else {
+            Ray::spawn(hit.position, hit.ng, illumination.dir_to_light)
+        };
+        if scene.occluded(&shadow) {
+            return (Rgb::BLACK, 1);
+        }
+        let light_pdf_w = illumination.direct_pdf_w * pick;
+        let weight = if light.is_delta() {
+            1.0
+        } else {
+            self.mis(light_pdf_w, eval.pdf_w)
+        };
+        let cos = bsdf.cos_theta(illumination.dir_to_light);
+        (
+            illumination.radiance * eval.f * (cos * weight / light_pdf_w),
+            1,
+        )
+    }
 }
 
 impl Integrator for PathTracer<'_> {
-    fn render_iteration(&mut self, _iteration: u64, _frame: &mut [Rgb]) -> IterationStats {
-        let _ = &self.ctx;
-        todo!()
+    fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
+        let camera = &self.ctx.camera;
+        let width = camera.width as usize;
+        let seed = self.ctx.options.seed;
+        let this = &*self;
+        frame
+            .par_chunks_mut(width)
+            .enumerate()
+            .map(|(y, row)| {
+                let mut stats = IterationStats::default();
+                for (x, pixel) in row.iter_mut().enumerate() {
+                    let index = (y * width + x) as u64;
+                    let mut rng = Rng::for_sample(seed, iteration, index, Stream::Eye);
+                    let [jx, jy] = rng.next_2d();
+                    let ray = camera.generate_ray(x as f32 + jx, y as f32 + jy);
+                    let (radiance, rays) = this.radiance(ray, &mut rng);
+                    stats.rays += rays;
+                    add_sample(pixel, radiance, &mut stats.dropped_samples);
+                }
+                stats
+            })
+            .reduce(IterationStats::default, |a, b| IterationStats {
+                dropped_samples: a.dropped_samples + b.dropped_samples,
+                rays: a.rays + b.rays,
+            })
     }
 }

@@ -26,14 +26,27 @@ const NO_LIGHT: u32 = u32::MAX;
 #[derive(Clone, Debug, PartialEq)]
 pub enum Light {
     /// An emissive triangle, radiating `radiance` on the side of its normal.
-    Triangle { vertices: [Vec3; 3], normal: Vec3, area: f32, radiance: Rgb },
+    Triangle {
+        vertices: [Vec3; 3],
+        normal: Vec3,
+        area: f32,
+        radiance: Rgb,
+    },
     /// An emissive sphere, radiating outwards.
-    Sphere { center: Vec3, radius: f32, radiance: Rgb },
+    Sphere {
+        center: Vec3,
+        radius: f32,
+        radiance: Rgb,
+    },
     /// `intensity` in W/sr, uniform in all directions.
     Point { position: Vec3, intensity: Rgb },
     /// Parallel light travelling along the unit `direction`; `irradiance` in W/m^2 on a
     /// perpendicular surface. `scene` is the scene's bounding sphere (centre, radius).
-    Directional { direction: Vec3, irradiance: Rgb, scene: (Vec3, f32) },
+    Directional {
+        direction: Vec3,
+        irradiance: Rgb,
+        scene: (Vec3, f32),
+    },
     /// The gradient sky, an infinite light around the scene's bounding sphere.
     Sky { sky: SkyDesc, scene: (Vec3, f32) },
 }
@@ -101,13 +114,13 @@ impl Light {
     pub fn power(&self) -> f32 {
         match self {
             Light::Triangle { area, radiance, .. } => radiance.average() * area * PI,
-            Light::Sphere { radius, radiance, .. } => {
-                radiance.average() * 4.0 * PI * radius * radius * PI
-            }
+            Light::Sphere {
+                radius, radiance, ..
+            } => radiance.average() * 4.0 * PI * radius * radius * PI,
             Light::Point { intensity, .. } => intensity.average() * 4.0 * PI,
-            Light::Directional { irradiance, scene, .. } => {
-                irradiance.average() * PI * scene.1 * scene.1
-            }
+            Light::Directional {
+                irradiance, scene, ..
+            } => irradiance.average() * PI * scene.1 * scene.1,
             Light::Sky { sky, scene } => {
                 let mean = 0.5 * (sky.horizon + (sky.horizon + sky.zenith) * 0.5);
                 mean.average() * PI * PI * scene.1 * scene.1
@@ -118,17 +131,29 @@ impl Light {
     /// A point on the light as seen from `receiver`, for random numbers `u`.
     pub fn illuminate(&self, receiver: Vec3, u: [f32; 2]) -> Option<Illumination> {
         match *self {
-            Light::Triangle { vertices, normal, area, radiance } => {
+            Light::Triangle {
+                vertices,
+                normal,
+                area,
+                radiance,
+            } => {
                 let (b1, b2) = sampling::uniform_triangle(u);
                 let p = (1.0 - b1 - b2) * vertices[0] + b1 * vertices[1] + b2 * vertices[2];
                 area_illumination(receiver, p, normal, 1.0 / area, radiance)
             }
-            Light::Sphere { center, radius, radiance } => {
+            Light::Sphere {
+                center,
+                radius,
+                radiance,
+            } => {
                 let n = sampling::uniform_sphere(u);
                 let p = center + radius * n;
                 area_illumination(receiver, p, n, 1.0 / (4.0 * PI * radius * radius), radiance)
             }
-            Light::Point { position, intensity } => {
+            Light::Point {
+                position,
+                intensity,
+            } => {
                 let to_light = position - receiver;
                 let dist2 = to_light.length_squared();
                 let distance = dist2.sqrt();
@@ -143,7 +168,11 @@ impl Light {
                     cos_at_light: 1.0,
                 })
             }
-            Light::Directional { direction, irradiance, scene } => Some(Illumination {
+            Light::Directional {
+                direction,
+                irradiance,
+                scene,
+            } => Some(Illumination {
                 dir_to_light: -direction,
                 distance: f32::INFINITY,
                 position: receiver - direction * 2.0 * scene.1,
@@ -174,17 +203,29 @@ impl Light {
     /// direction.
     pub fn emit(&self, u_pos: [f32; 2], u_dir: [f32; 2]) -> Option<Emission> {
         match *self {
-            Light::Triangle { vertices, normal, area, radiance } => {
+            Light::Triangle {
+                vertices,
+                normal,
+                area,
+                radiance,
+            } => {
                 let (b1, b2) = sampling::uniform_triangle(u_pos);
                 let p = (1.0 - b1 - b2) * vertices[0] + b1 * vertices[1] + b2 * vertices[2];
                 area_emission(p, normal, 1.0 / area, radiance, u_dir)
             }
-            Light::Sphere { center, radius, radiance } => {
+            Light::Sphere {
+                center,
+                radius,
+                radiance,
+            } => {
                 let n = sampling::uniform_sphere(u_pos);
                 let pdf_a = 1.0 / (4.0 * PI * radius * radius);
                 area_emission(center + radius * n, n, pdf_a, radiance, u_dir)
             }
-            Light::Point { position, intensity } => {
+            Light::Point {
+                position,
+                intensity,
+            } => {
                 let dir = sampling::uniform_sphere(u_dir);
                 Some(Emission {
                     position,
@@ -196,7 +237,11 @@ impl Light {
                     cos_at_light: 1.0,
                 })
             }
-            Light::Directional { direction, irradiance, scene } => Some(Emission {
+            Light::Directional {
+                direction,
+                irradiance,
+                scene,
+            } => Some(Emission {
                 position: disk_origin(scene, direction, u_pos),
                 dir: direction,
                 normal: direction,
@@ -230,7 +275,9 @@ impl Light {
     pub fn radiance(&self, ray_dir: Vec3, normal: Vec3) -> Option<Received> {
         let (pdf_a, radiance) = match *self {
             Light::Triangle { area, radiance, .. } => (1.0 / area, radiance),
-            Light::Sphere { radius, radiance, .. } => (1.0 / (4.0 * PI * radius * radius), radiance),
+            Light::Sphere {
+                radius, radiance, ..
+            } => (1.0 / (4.0 * PI * radius * radius), radiance),
             _ => return None,
         };
         let cos = normal.dot(-ray_dir);
@@ -273,7 +320,13 @@ fn area_illumination(
     })
 }
 
-fn area_emission(p: Vec3, normal: Vec3, pdf_a: f32, radiance: Rgb, u: [f32; 2]) -> Option<Emission> {
+fn area_emission(
+    p: Vec3,
+    normal: Vec3,
+    pdf_a: f32,
+    radiance: Rgb,
+    u: [f32; 2],
+) -> Option<Emission> {
     let local = sampling::cosine_hemisphere(u);
     if local.z <= 0.0 {
         return None;
@@ -343,7 +396,12 @@ impl Lights {
                 continue;
             }
             triangle_lights[i] = lights.len() as u32;
-            lights.push(Light::Triangle { vertices, normal: cross.normalize(), area, radiance: emission });
+            lights.push(Light::Triangle {
+                vertices,
+                normal: cross.normalize(),
+                area,
+                radiance: emission,
+            });
         }
         let mut sphere_lights = vec![NO_LIGHT; geometry.spheres.len()];
         for (i, &m) in sphere_materials.iter().enumerate() {
@@ -353,13 +411,23 @@ impl Lights {
             }
             let s = geometry.spheres[i];
             sphere_lights[i] = lights.len() as u32;
-            lights.push(Light::Sphere { center: s.center, radius: s.radius, radiance: emission });
+            lights.push(Light::Sphere {
+                center: s.center,
+                radius: s.radius,
+                radiance: emission,
+            });
         }
         for light in explicit {
             lights.push(match light {
-                Light::Directional { direction, irradiance, .. } => {
-                    Light::Directional { direction: direction.normalize(), irradiance, scene }
-                }
+                Light::Directional {
+                    direction,
+                    irradiance,
+                    ..
+                } => Light::Directional {
+                    direction: direction.normalize(),
+                    irradiance,
+                    scene,
+                },
                 other => other,
             });
         }
@@ -370,7 +438,13 @@ impl Lights {
                 lights.len() as u32 - 1
             });
         let selection = Distribution1D::new(lights.iter().map(Light::power).collect());
-        Lights { lights, selection, triangle_lights, sphere_lights, sky: sky_index }
+        Lights {
+            lights,
+            selection,
+            triangle_lights,
+            sphere_lights,
+            sky: sky_index,
+        }
     }
 
     pub fn is_empty(&self) -> bool {
@@ -395,7 +469,9 @@ impl Lights {
 
     /// Probability that [`Lights::pick`] returns `index`.
     pub fn pick_pdf(&self, index: u32) -> f32 {
-        self.selection.as_ref().map_or(0.0, |d| d.pmf(index as usize))
+        self.selection
+            .as_ref()
+            .map_or(0.0, |d| d.pmf(index as usize))
     }
 
     pub fn triangle_light(&self, triangle: u32) -> Option<u32> {

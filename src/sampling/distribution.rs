@@ -21,7 +21,11 @@ impl Distribution1D {
             total += w as f64;
             cdf.push(total);
         }
-        (total > 0.0 && total.is_finite()).then_some(Distribution1D { weights, cdf, total })
+        (total > 0.0 && total.is_finite()).then_some(Distribution1D {
+            weights,
+            cdf,
+            total,
+        })
     }
 
     pub fn len(&self) -> usize {

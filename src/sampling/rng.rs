@@ -29,7 +29,10 @@ fn mix(mut z: u64) -> u64 {
 impl Rng {
     /// A generator from a raw seed and stream selector.
     pub fn from_seed(seed: u64, sequence: u64) -> Self {
-        let mut rng = Rng { state: 0, inc: (sequence << 1) | 1 };
+        let mut rng = Rng {
+            state: 0,
+            inc: (sequence << 1) | 1,
+        };
         rng.next_u32();
         rng.state = rng.state.wrapping_add(seed);
         rng.next_u32();

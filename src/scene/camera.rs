@@ -36,7 +36,11 @@ impl Camera {
         let tan_half = (desc.fov_deg.to_radians() * 0.5).tan();
         Camera {
             position: desc.position,
-            frame: Frame { x: right, y: up, z: forward },
+            frame: Frame {
+                x: right,
+                y: up,
+                z: forward,
+            },
             width,
             height,
             image_plane_dist: height as f32 / (2.0 * tan_half),
@@ -109,7 +113,10 @@ mod tests {
         for (x, y) in [(0.5, 0.5), (10.25, 40.75), (63.9, 0.1), (32.0, 24.0)] {
             let ray = cam.generate_ray(x, y);
             let (rx, ry) = cam.raster(ray.at(2.7)).unwrap();
-            assert!((rx - x).abs() < 1e-3 && (ry - y).abs() < 1e-3, "{x},{y} -> {rx},{ry}");
+            assert!(
+                (rx - x).abs() < 1e-3 && (ry - y).abs() < 1e-3,
+                "{x},{y} -> {rx},{ry}"
+            );
         }
         assert!(cam.raster(Vec3::new(0.0, 1.0, 5.0)).is_none());
         // The vertical field of view spans the image height.

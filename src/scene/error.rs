@@ -6,11 +6,18 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 pub enum SceneError {
     #[error("{file}: cannot read: {source}")]
-    Io { file: PathBuf, source: std::io::Error },
+    Io {
+        file: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{file}: {message}")]
     Parse { file: PathBuf, message: String },
     #[error("{file}: {entry}: {message}")]
-    Invalid { file: PathBuf, entry: String, message: String },
+    Invalid {
+        file: PathBuf,
+        entry: String,
+        message: String,
+    },
     #[error("{file}: the scene has no geometry")]
     NoGeometry { file: PathBuf },
     #[error("{file}: the scene has no lights (no emissive material, [[light]] or sky)")]
@@ -18,7 +25,11 @@ pub enum SceneError {
     #[error("{file}: the scene has no [[camera]]")]
     NoCamera { file: PathBuf },
     #[error("{file}: no camera named or numbered '{camera}' (cameras: {available:?})")]
-    UnknownCamera { file: PathBuf, camera: String, available: Vec<String> },
+    UnknownCamera {
+        file: PathBuf,
+        camera: String,
+        available: Vec<String>,
+    },
     #[error("{file}: building the ray-query structure failed: {source}")]
     Accel { file: PathBuf, source: AccelError },
 }

@@ -36,7 +36,11 @@ pub struct RenderDefaults {
 
 impl Default for RenderDefaults {
     fn default() -> Self {
-        RenderDefaults { resolution: [512, 512], max_path_length: 10, radius: None }
+        RenderDefaults {
+            resolution: [512, 512],
+            max_path_length: 10,
+            radius: None,
+        }
     }
 }
 
@@ -106,10 +110,15 @@ impl Scene {
             (center, radius),
         );
         if lights.is_empty() {
-            return Err(SceneError::NoLights { file: parts.source.clone() });
+            return Err(SceneError::NoLights {
+                file: parts.source.clone(),
+            });
         }
-        let accel = accel::build(accel_kind, &parts.geometry)
-            .map_err(|source| SceneError::Accel { file: parts.source.clone(), source })?;
+        let accel =
+            accel::build(accel_kind, &parts.geometry).map_err(|source| SceneError::Accel {
+                file: parts.source.clone(),
+                source,
+            })?;
         Ok(Scene {
             source: parts.source,
             source_hash: parts.source_hash,
@@ -128,18 +137,30 @@ impl Scene {
 
     /// Closest surface along `ray`.
     pub fn intersect(&self, ray: &Ray) -> Option<SurfaceHit> {
-        self.accel.intersect(ray).map(|hit| self.surface_hit(ray, hit))
+        self.accel
+            .intersect(ray)
+            .map(|hit| self.surface_hit(ray, hit))
     }
 
     /// Turns a backend hit into a surface point with its material and light.
     pub fn surface_hit(&self, ray: &Ray, hit: Hit) -> SurfaceHit {
         let (material, light) = match hit.primitive {
-            Primitive::Triangle(i) => {
-                (self.triangle_materials[i as usize], self.lights.triangle_light(i))
-            }
-            Primitive::Sphere(i) => (self.sphere_materials[i as usize], self.lights.sphere_light(i)),
+            Primitive::Triangle(i) => (
+                self.triangle_materials[i as usize],
+                self.lights.triangle_light(i),
+            ),
+            Primitive::Sphere(i) => (
+                self.sphere_materials[i as usize],
+                self.lights.sphere_light(i),
+            ),
         };
-        SurfaceHit { hit, position: ray.at(hit.t), ng: hit.ng, material, light }
+        SurfaceHit {
+            hit,
+            position: ray.at(hit.t),
+            ng: hit.ng,
+            material,
+            light,
+        }
     }
 
     pub fn occluded(&self, ray: &Ray) -> bool {
@@ -152,20 +173,29 @@ impl Scene {
 
     /// The default merge radius: 0.003 x the bounding-sphere diameter (SmallVCM's choice).
     pub fn default_radius(&self) -> f32 {
-        self.defaults.radius.unwrap_or(0.003 * 2.0 * self.bounding_sphere.1)
+        self.defaults
+            .radius
+            .unwrap_or(0.003 * 2.0 * self.bounding_sphere.1)
     }
 
     /// Finds a camera by name or by index.
     pub fn camera(&self, selector: Option<&str>) -> Result<&CameraDesc, SceneError> {
         let Some(selector) = selector else {
-            return self.cameras.first().ok_or(SceneError::NoCamera { file: self.source.clone() });
+            return self.cameras.first().ok_or(SceneError::NoCamera {
+                file: self.source.clone(),
+            });
         };
         let by_name = self.cameras.iter().find(|c| c.name == selector);
-        let by_index = selector.parse::<usize>().ok().and_then(|i| self.cameras.get(i));
-        by_name.or(by_index).ok_or_else(|| SceneError::UnknownCamera {
-            file: self.source.clone(),
-            camera: selector.to_string(),
-            available: self.cameras.iter().map(|c| c.name.clone()).collect(),
-        })
+        let by_index = selector
+            .parse::<usize>()
+            .ok()
+            .and_then(|i| self.cameras.get(i));
+        by_name
+            .or(by_index)
+            .ok_or_else(|| SceneError::UnknownCamera {
+                file: self.source.clone(),
+                camera: selector.to_string(),
+                available: self.cameras.iter().map(|c| c.name.clone()).collect(),
+            })
     }
 }

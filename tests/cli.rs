@@ -1,0 +1,76 @@
+//! The command line: bad input gets a clear message naming the file, exit code 2, and no
+//! output file.
+
+use std::path::Path;
+use std::process::Command;
+
+fn vmerge() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_vmerge"))
+}
+
+/// Every fixture under tests/fixtures/bad/ must be refused with exit code 2, a message naming
+/// the offending file, and nothing written.
+#[test]
+fn bad_scenes_exit_2_and_write_nothing() {
+    let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/bad");
+    let mut cases: Vec<_> = std::fs::read_dir(&fixtures)
+        .expect("tests/fixtures/bad exists")
+        .map(|e| e.expect("readable fixture").path())
+        .collect();
+    cases.sort();
+    assert!(
+        cases.len() >= 10,
+        "expected the bad-input fixtures, found {}",
+        cases.len()
+    );
+    for case in cases {
+        let scene = case.join("scene.toml");
+        let out = tempfile::tempdir().unwrap();
+        let exr = out.path().join("out.exr");
+        let result = vmerge()
+            .args([
+                "render",
+                "--iterations",
+                "1",
+                "--resolution",
+                "8x8",
+                "--accel",
+                "bvh",
+                "-o",
+            ])
+            .arg(&exr)
+            .arg(&scene)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(
+            result.status.code(),
+            Some(2),
+            "{}: {stderr}",
+            case.display()
+        );
+        assert!(!stderr.contains("panicked"), "{}: {stderr}", case.display());
+        let name = case.file_name().unwrap().to_string_lossy();
+        assert!(
+            stderr.contains(&*name),
+            "{}: message does not name the file: {stderr}",
+            case.display()
+        );
+        let written: Vec<_> = std::fs::read_dir(out.path()).unwrap().collect();
+        assert!(written.is_empty(), "{}: wrote {written:?}", case.display());
+    }
+}
+
+#[test]
+fn missing_input_files_exit_2() {
+    for args in [
+        vec!["average", "does-not-exist.exr"],
+        vec!["errors", "a-missing.exr", "b-missing.exr"],
+        vec!["continue", "missing-render.exr"],
+    ] {
+        let result = vmerge().args(&args).output().unwrap();
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains("missing"), "{args:?}: {stderr}");
+    }
+}
