@@ -1,7 +1,18 @@
-//! The TOML scene file and its OBJ/MTL meshes.
-use super::{Scene, SceneError};
-use crate::accel::AccelKind;
-use std::path::Path;
+//! The TOML scene file (DESIGN.md "Scene file") and its OBJ/MTL meshes.
+//!
+//! Everything is validated before anything is built: each problem is one [`SceneError`] naming
+//! the file and the entry. Only geometric normals are used; OBJ shading normals are ignored.
+
+use super::{CameraDesc, RenderDefaults, Scene, SceneError, SceneParts, SkyDesc};
+use crate::accel::{AccelKind, Geometry, Sphere};
+use crate::bsdf::{Material, MaterialKind};
+use crate::color::Rgb;
+use crate::light::Light;
+use glam::{Mat3, Vec3};
+use serde::Deserialize;
+use sha2::{Digest, Sha256};
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
 
 #[derive(Clone, Copy, Debug)]
 pub struct LoadOptions {
@@ -10,7 +21,673 @@ pub struct LoadOptions {
     pub lenient: bool,
 }
 
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    #[serde(default)]
+    render: RenderTable,
+    #[serde(default)]
+    camera: Vec<CameraTable>,
+    #[serde(default)]
+    mesh: Vec<MeshTable>,
+    #[serde(default)]
+    sphere: Vec<SphereTable>,
+    #[serde(default)]
+    material: BTreeMap<String, MaterialTable>,
+    #[serde(default)]
+    light: Vec<LightTable>,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct RenderTable {
+    resolution: Option<[u32; 2]>,
+    max_path_length: Option<u32>,
+    radius: Option<f32>,
+    sky: Option<SkyTable>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SkyTable {
+    horizon: [f32; 3],
+    zenith: [f32; 3],
+    #[serde(default = "default_up")]
+    up: [f32; 3],
+}
+
+fn default_up() -> [f32; 3] {
+    [0.0, 1.0, 0.0]
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraTable {
+    name: Option<String>,
+    position: [f32; 3],
+    look_at: [f32; 3],
+    #[serde(default = "default_up")]
+    up: [f32; 3],
+    fov: f32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeshTable {
+    file: PathBuf,
+    transform: Option<TransformTable>,
+    material: Option<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TransformTable {
+    #[serde(default = "one")]
+    scale: f32,
+    #[serde(default)]
+    rotate_deg: [f32; 3],
+    #[serde(default)]
+    translate: [f32; 3],
+}
+
+fn one() -> f32 {
+    1.0
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SphereTable {
+    center: [f32; 3],
+    radius: f32,
+    material: String,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialTable {
+    #[serde(rename = "type")]
+    kind: Option<String>,
+    kd: Option<[f32; 3]>,
+    ks: Option<[f32; 3]>,
+    exponent: Option<f32>,
+    ior: Option<f32>,
+    emission: Option<[f32; 3]>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightTable {
+    #[serde(rename = "type")]
+    kind: String,
+    position: Option<[f32; 3]>,
+    intensity: Option<[f32; 3]>,
+    direction: Option<[f32; 3]>,
+    irradiance: Option<[f32; 3]>,
+}
+
+/// Loads, validates and builds the scene at `path`.
 pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
-    let _ = (path, options);
-    todo!("scene loader")
+    let parts = load_parts(path, options)?;
+    Scene::build(parts, options.accel)
+}
+
+/// Reads and validates the scene file and its meshes, without building the ray queries.
+pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    let file: SceneFile = toml::from_str(&text).map_err(|e| SceneError::Parse {
+        file: path.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let mut loader = Loader {
+        path: path.to_path_buf(),
+        dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+        lenient: options.lenient,
+        hasher: Sha256::new(),
+        materials: Vec::new(),
+        by_name: HashMap::new(),
+        geometry: Geometry::default(),
+        triangle_materials: Vec::new(),
+        sphere_materials: Vec::new(),
+        dropped_triangles: 0,
+    };
+    loader.hasher.update(text.as_bytes());
+    loader.build(file)
+}
+
+struct Loader {
+    path: PathBuf,
+    dir: PathBuf,
+    lenient: bool,
+    hasher: Sha256,
+    materials: Vec<Material>,
+    by_name: HashMap<String, u32>,
+    geometry: Geometry,
+    triangle_materials: Vec<u32>,
+    sphere_materials: Vec<u32>,
+    dropped_triangles: usize,
+}
+
+impl Loader {
+    fn invalid(&self, entry: impl Into<String>, message: impl Into<String>) -> SceneError {
+        SceneError::Invalid {
+            file: self.path.clone(),
+            entry: entry.into(),
+            message: message.into(),
+        }
+    }
+
+    fn vec3(&self, entry: &str, v: [f32; 3]) -> Result<Vec3, SceneError> {
+        if v.iter().all(|x| x.is_finite()) {
+            Ok(Vec3::from_array(v))
+        } else {
+            Err(self.invalid(entry, format!("{v:?} is not a finite number triple")))
+        }
+    }
+
+    fn color(&self, entry: &str, v: [f32; 3]) -> Result<Rgb, SceneError> {
+        let c = self.vec3(entry, v)?;
+        if c.min_element() < 0.0 {
+            return Err(self.invalid(entry, format!("{v:?} has a negative component")));
+        }
+        Ok(Rgb::from_array(v))
+    }
+
+    fn positive(&self, entry: &str, x: f32) -> Result<f32, SceneError> {
+        if x.is_finite() && x > 0.0 {
+            Ok(x)
+        } else {
+            Err(self.invalid(entry, format!("{x} must be a positive finite number")))
+        }
+    }
+
+    fn build(mut self, file: SceneFile) -> Result<SceneParts, SceneError> {
+        let defaults = self.render_defaults(&file.render)?;
+        let sky = match &file.render.sky {
+            Some(s) => Some(SkyDesc {
+                horizon: self.color("render.sky.horizon", s.horizon)?,
+                zenith: self.color("render.sky.zenith", s.zenith)?,
+                up: self.direction("render.sky.up", s.up)?,
+            }),
+            None => None,
+        };
+        let cameras = file
+            .camera
+            .iter()
+            .enumerate()
+            .map(|(i, c)| self.camera(i, c))
+            .collect::<Result<Vec<_>, _>>()?;
+        if cameras.is_empty() {
+            return Err(SceneError::NoCamera {
+                file: self.path.clone(),
+            });
+        }
+        // Scene-file materials first, so meshes and spheres can refer to them; MTL materials of
+        // the same name are overridden by them.
+        for (name, table) in &file.material {
+            let material = self.material_from_table(name, table, None)?;
+            self.add_material(material);
+        }
+        for (i, mesh) in file.mesh.iter().enumerate() {
+            self.mesh(i, mesh)?;
+        }
+        for (i, s) in file.sphere.iter().enumerate() {
+            let entry = format!("sphere[{i}]");
+            let center = self.vec3(&format!("{entry}.center"), s.center)?;
+            let radius = self.positive(&format!("{entry}.radius"), s.radius)?;
+            let material = self.material_index(&format!("{entry}.material"), &s.material)?;
+            self.geometry.spheres.push(Sphere { center, radius });
+            self.sphere_materials.push(material);
+        }
+        let lights = file
+            .light
+            .iter()
+            .enumerate()
+            .map(|(i, l)| self.light(i, l))
+            .collect::<Result<Vec<_>, _>>()?;
+        if self.dropped_triangles > 0 {
+            eprintln!(
+                "warning: {}: dropped {} degenerate triangles",
+                self.path.display(),
+                self.dropped_triangles
+            );
+        }
+        if self.geometry.triangles.is_empty() && self.geometry.spheres.is_empty() {
+            return Err(SceneError::NoGeometry {
+                file: self.path.clone(),
+            });
+        }
+        let source_hash = self
+            .hasher
+            .finalize()
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        Ok(SceneParts {
+            source: self.path,
+            source_hash,
+            geometry: self.geometry,
+            triangle_materials: self.triangle_materials,
+            sphere_materials: self.sphere_materials,
+            materials: self.materials,
+            point_and_directional: lights,
+            sky,
+            cameras,
+            defaults,
+            dropped_triangles: self.dropped_triangles,
+        })
+    }
+
+    fn render_defaults(&self, r: &RenderTable) -> Result<RenderDefaults, SceneError> {
+        let mut d = RenderDefaults::default();
+        if let Some(res) = r.resolution {
+            if res[0] == 0 || res[1] == 0 {
+                return Err(self.invalid("render.resolution", format!("{res:?} has a zero side")));
+            }
+            d.resolution = res;
+        }
+        if let Some(n) = r.max_path_length {
+            d.max_path_length = n;
+        }
+        if let Some(radius) = r.radius {
+            d.radius = Some(self.positive("render.radius", radius)?);
+        }
+        Ok(d)
+    }
+
+    fn direction(&self, entry: &str, v: [f32; 3]) -> Result<Vec3, SceneError> {
+        let d = self.vec3(entry, v)?;
+        if d.length_squared() == 0.0 {
+            return Err(self.invalid(entry, "a direction cannot be zero"));
+        }
+        Ok(d.normalize())
+    }
+
+    fn camera(&self, i: usize, c: &CameraTable) -> Result<CameraDesc, SceneError> {
+        let name = c.name.clone().unwrap_or_else(|| i.to_string());
+        let entry = format!("camera[{i}] ({name})");
+        let position = self.vec3(&format!("{entry}.position"), c.position)?;
+        let look_at = self.vec3(&format!("{entry}.look_at"), c.look_at)?;
+        let up = self.direction(&format!("{entry}.up"), c.up)?;
+        if !(c.fov > 0.0 && c.fov < 180.0) {
+            return Err(self.invalid(
+                format!("{entry}.fov"),
+                format!("{} is not in (0, 180) degrees", c.fov),
+            ));
+        }
+        let forward = look_at - position;
+        if forward.length_squared() == 0.0 {
+            return Err(self.invalid(&entry, "position and look_at coincide"));
+        }
+        if forward.normalize().cross(up).length() < 1e-4 {
+            return Err(self.invalid(&entry, "the camera looks along its up vector"));
+        }
+        Ok(CameraDesc {
+            name,
+            position,
+            look_at,
+            up,
+            fov_deg: c.fov,
+        })
+    }
+
+    fn add_material(&mut self, material: Material) -> u32 {
+        let index = self.materials.len() as u32;
+        self.by_name.insert(material.name.clone(), index);
+        self.materials.push(material);
+        index
+    }
+
+    fn material_index(&self, entry: &str, name: &str) -> Result<u32, SceneError> {
+        self.by_name.get(name).copied().ok_or_else(|| {
+            let mut known: Vec<_> = self.by_name.keys().cloned().collect();
+            known.sort();
+            self.invalid(
+                entry,
+                format!("unknown material '{name}' (known: {known:?})"),
+            )
+        })
+    }
+
+    /// A material from a `[material.NAME]` table, on top of `base` (an MTL material of the
+    /// same name) when there is one.
+    fn material_from_table(
+        &self,
+        name: &str,
+        t: &MaterialTable,
+        base: Option<&Material>,
+    ) -> Result<Material, SceneError> {
+        let entry = format!("material.{name}");
+        let (base_kd, base_ks, base_n, base_ior) = match base.map(|m| &m.kind) {
+            Some(MaterialKind::Lambert { kd }) => (*kd, Rgb::BLACK, 1.0, 1.5),
+            Some(MaterialKind::Phong { kd, ks, exponent }) => (*kd, *ks, *exponent, 1.5),
+            Some(MaterialKind::Mirror { ks }) => (Rgb::BLACK, *ks, 1.0, 1.5),
+            Some(MaterialKind::Glass { ior }) => (Rgb::BLACK, Rgb::BLACK, 1.0, *ior),
+            None => (Rgb::splat(0.8), Rgb::BLACK, 1.0, 1.5),
+        };
+        let kd =
+            t.kd.map(|v| self.color(&format!("{entry}.kd"), v))
+                .transpose()?
+                .unwrap_or(base_kd);
+        let ks =
+            t.ks.map(|v| self.color(&format!("{entry}.ks"), v))
+                .transpose()?
+                .unwrap_or(base_ks);
+        let exponent = t
+            .exponent
+            .map(|x| self.positive(&format!("{entry}.exponent"), x))
+            .transpose()?
+            .unwrap_or(base_n);
+        let ior = t
+            .ior
+            .map(|x| self.positive(&format!("{entry}.ior"), x))
+            .transpose()?
+            .unwrap_or(base_ior);
+        let emission = match t.emission {
+            Some(v) => self.color(&format!("{entry}.emission"), v)?,
+            None => base.map_or(Rgb::BLACK, |m| m.emission),
+        };
+        let kind_name = match (&t.kind, base) {
+            (Some(k), _) => k.as_str(),
+            (None, Some(m)) => kind_name(&m.kind),
+            (None, None) => "lambert",
+        };
+        let kind = match kind_name {
+            "lambert" => MaterialKind::Lambert { kd },
+            "phong" => MaterialKind::Phong { kd, ks, exponent },
+            "mirror" => MaterialKind::Mirror {
+                ks: if t.ks.is_some() || base.is_some() {
+                    ks
+                } else {
+                    Rgb::WHITE
+                },
+            },
+            "glass" => MaterialKind::Glass { ior },
+            other => {
+                return Err(self.invalid(
+                    format!("{entry}.type"),
+                    format!("unknown material type '{other}' (lambert, phong, mirror, glass)"),
+                ))
+            }
+        };
+        let kind = self.check_energy(&entry, kind)?;
+        Ok(Material {
+            name: name.to_string(),
+            kind,
+            emission,
+        })
+    }
+
+    /// Phong conserves energy only for kd + ks <= 1 (000 eq. 3.1).
+    fn check_energy(&self, entry: &str, kind: MaterialKind) -> Result<MaterialKind, SceneError> {
+        let MaterialKind::Phong { kd, ks, exponent } = kind else {
+            return Ok(kind);
+        };
+        let total = (kd + ks).max_component();
+        if total <= 1.0 + 1e-6 {
+            return Ok(kind);
+        }
+        if !self.lenient {
+            return Err(self.invalid(
+                entry,
+                format!(
+                    "kd + ks = {:?} exceeds 1 and would create energy (use --lenient to clamp)",
+                    (kd + ks).to_array()
+                ),
+            ));
+        }
+        eprintln!(
+            "warning: {}: {entry}: kd + ks exceeds 1; scaled down to conserve energy",
+            self.path.display()
+        );
+        let scale = |c: f32, s: f32| if c + s > 1.0 { 1.0 / (c + s) } else { 1.0 };
+        let f = Rgb::new(scale(kd.r, ks.r), scale(kd.g, ks.g), scale(kd.b, ks.b));
+        Ok(MaterialKind::Phong {
+            kd: kd * f,
+            ks: ks * f,
+            exponent,
+        })
+    }
+
+    fn mesh(&mut self, i: usize, mesh: &MeshTable) -> Result<(), SceneError> {
+        let entry = format!("mesh[{i}]");
+        let obj_path = self.dir.join(&mesh.file);
+        let bytes = std::fs::read(&obj_path).map_err(|source| SceneError::Io {
+            file: obj_path.clone(),
+            source,
+        })?;
+        self.hasher.update(&bytes);
+        let load_options = tobj::LoadOptions {
+            triangulate: true,
+            single_index: false,
+            ..Default::default()
+        };
+        let (models, mtl) =
+            tobj::load_obj(&obj_path, &load_options).map_err(|e| SceneError::Parse {
+                file: obj_path.clone(),
+                message: format!("{entry}: {e}"),
+            })?;
+        let mtllib = mtllib_name(&bytes);
+        let mtl_materials = match (mtl, &mtllib) {
+            (Ok(materials), _) => materials,
+            (Err(e), Some(name)) => {
+                return Err(SceneError::Invalid {
+                    file: obj_path.parent().unwrap_or(Path::new("")).join(name),
+                    entry: format!("mtllib of {} ({entry})", obj_path.display()),
+                    message: format!("cannot load: {e}"),
+                })
+            }
+            (Err(_), None) => Vec::new(),
+        };
+        if let Some(name) = &mtllib {
+            let mtl_path = obj_path.parent().unwrap_or(Path::new("")).join(name);
+            if let Ok(text) = std::fs::read(&mtl_path) {
+                self.hasher.update(&text);
+                warn_unknown_mtl_statements(&mtl_path, &String::from_utf8_lossy(&text));
+            }
+        }
+        let mut indices = Vec::with_capacity(mtl_materials.len());
+        for m in &mtl_materials {
+            indices.push(self.mtl_material(&obj_path, m)?);
+        }
+        self.mesh_models(&entry, &obj_path, mesh, &models, &indices)
+    }
+
+    fn mesh_models(
+        &mut self,
+        entry: &str,
+        obj_path: &Path,
+        mesh: &MeshTable,
+        models: &[tobj::Model],
+        mtl_indices: &[u32],
+    ) -> Result<(), SceneError> {
+        let transform = match &mesh.transform {
+            Some(t) => {
+                let scale = self.positive(&format!("{entry}.transform.scale"), t.scale)?;
+                let r = self.vec3(&format!("{entry}.transform.rotate_deg"), t.rotate_deg)?;
+                let translate = self.vec3(&format!("{entry}.transform.translate"), t.translate)?;
+                let rotation = Mat3::from_rotation_z(r.z.to_radians())
+                    * Mat3::from_rotation_y(r.y.to_radians())
+                    * Mat3::from_rotation_x(r.x.to_radians());
+                Some((rotation * scale, translate))
+            }
+            None => None,
+        };
+        let override_material = mesh
+            .material
+            .as_ref()
+            .map(|name| self.material_index(&format!("{entry}.material"), name))
+            .transpose()?;
+        let mut default_material = None;
+        for model in models {
+            let m = &model.mesh;
+            let base = self.geometry.positions.len() as u32;
+            for (k, p) in m.positions.chunks_exact(3).enumerate() {
+                let mut v = Vec3::new(p[0], p[1], p[2]);
+                if !v.is_finite() {
+                    return Err(SceneError::Invalid {
+                        file: obj_path.to_path_buf(),
+                        entry: format!("object '{}', vertex {k}", model.name),
+                        message: format!("{v} is not finite"),
+                    });
+                }
+                if let Some((linear, translate)) = transform {
+                    v = linear * v + translate;
+                }
+                self.geometry.positions.push(v);
+            }
+            let material = match (override_material, m.material_id) {
+                (Some(o), _) => o,
+                (None, Some(id)) if id < mtl_indices.len() => mtl_indices[id],
+                _ => match default_material {
+                    Some(d) => d,
+                    None => {
+                        eprintln!(
+                            "warning: {}: object '{}' has no material; using grey lambert (kd 0.8)",
+                            obj_path.display(),
+                            model.name
+                        );
+                        let d = self.default_material();
+                        default_material = Some(d);
+                        d
+                    }
+                },
+            };
+            for tri in m.indices.chunks_exact(3) {
+                let t = [base + tri[0], base + tri[1], base + tri[2]];
+                let [a, b, c] = t.map(|i| self.geometry.positions[i as usize]);
+                if (b - a).cross(c - a).length_squared() <= 0.0 {
+                    self.dropped_triangles += 1;
+                    continue;
+                }
+                self.geometry.triangles.push(t);
+                self.triangle_materials.push(material);
+            }
+        }
+        Ok(())
+    }
+
+    fn default_material(&mut self) -> u32 {
+        const NAME: &str = "(default grey)";
+        match self.by_name.get(NAME) {
+            Some(&i) => i,
+            None => self.add_material(Material {
+                name: NAME.into(),
+                kind: MaterialKind::Lambert {
+                    kd: Rgb::splat(0.8),
+                },
+                emission: Rgb::BLACK,
+            }),
+        }
+    }
+
+    /// The material for an MTL entry: a scene-file table of the same name wins (it was added
+    /// first); otherwise DESIGN.md's MTL mapping.
+    fn mtl_material(&mut self, obj_path: &Path, m: &tobj::Material) -> Result<u32, SceneError> {
+        if let Some(&i) = self.by_name.get(&m.name) {
+            return Ok(i);
+        }
+        let entry = format!("material '{}' of {}", m.name, obj_path.display());
+        let color = |v: Option<[f32; 3]>| v.map_or(Rgb::BLACK, Rgb::from_array);
+        let kd = color(m.diffuse);
+        let ks = color(m.specular);
+        let emission = color(m.emissive);
+        for (what, c) in [("Kd", kd), ("Ks", ks), ("Ke", emission)] {
+            if !c.is_finite() || c.min_component() < 0.0 {
+                return Err(self.invalid(
+                    format!("{entry}: {what}"),
+                    format!("{:?} is not a non-negative finite colour", c.to_array()),
+                ));
+            }
+        }
+        let illum = m.illumination_model.unwrap_or(0);
+        let dissolve = m.dissolve.unwrap_or(1.0);
+        let kind = if matches!(illum, 4 | 6 | 7) || dissolve < 1.0 {
+            MaterialKind::Glass {
+                ior: m.optical_density.filter(|n| *n > 0.0).unwrap_or(1.5),
+            }
+        } else if matches!(illum, 3 | 5) {
+            MaterialKind::Mirror {
+                ks: if m.specular.is_some() { ks } else { Rgb::WHITE },
+            }
+        } else if ks.max_component() > 0.0 {
+            MaterialKind::Phong {
+                kd,
+                ks,
+                exponent: m.shininess.filter(|n| *n >= 0.0).unwrap_or(1.0),
+            }
+        } else {
+            MaterialKind::Lambert { kd }
+        };
+        let kind = self.check_energy(&entry, kind)?;
+        Ok(self.add_material(Material {
+            name: m.name.clone(),
+            kind,
+            emission,
+        }))
+    }
+
+    fn light(&self, i: usize, l: &LightTable) -> Result<Light, SceneError> {
+        let entry = format!("light[{i}]");
+        let need = |v: Option<[f32; 3]>, key: &str| {
+            v.ok_or_else(|| self.invalid(&entry, format!("a {} light needs `{key}`", l.kind)))
+        };
+        match l.kind.as_str() {
+            "point" => Ok(Light::Point {
+                position: self.vec3(&format!("{entry}.position"), need(l.position, "position")?)?,
+                intensity: self.color(&format!("{entry}.intensity"), need(l.intensity, "intensity")?)?,
+            }),
+            "directional" => Ok(Light::Directional {
+                direction: self.direction(&format!("{entry}.direction"), need(l.direction, "direction")?)?,
+                irradiance: self.color(&format!("{entry}.irradiance"), need(l.irradiance, "irradiance")?)?,
+                scene: (Vec3::ZERO, 1.0),
+            }),
+            other => Err(self.invalid(
+                format!("{entry}.type"),
+                format!("unknown light type '{other}' (point, directional; area lights are emissive materials)"),
+            )),
+        }
+    }
+}
+
+fn kind_name(kind: &MaterialKind) -> &'static str {
+    match kind {
+        MaterialKind::Lambert { .. } => "lambert",
+        MaterialKind::Phong { .. } => "phong",
+        MaterialKind::Mirror { .. } => "mirror",
+        MaterialKind::Glass { .. } => "glass",
+    }
+}
+
+/// The first `mtllib` of an OBJ file.
+fn mtllib_name(obj: &[u8]) -> Option<String> {
+    String::from_utf8_lossy(obj).lines().find_map(|l| {
+        l.trim()
+            .strip_prefix("mtllib ")
+            .map(|s| s.trim().to_string())
+    })
+}
+
+/// MTL statements vmerge understands; anything else is reported once per file.
+const KNOWN_MTL: &[&str] = &["newmtl", "Kd", "Ks", "Ke", "Ns", "Ni", "d", "illum"];
+
+fn warn_unknown_mtl_statements(path: &Path, text: &str) {
+    let mut seen = std::collections::BTreeSet::new();
+    for line in text.lines() {
+        let line = line.trim();
+        let Some(word) = line.split_whitespace().next() else {
+            continue;
+        };
+        if word.starts_with('#') || KNOWN_MTL.contains(&word) {
+            continue;
+        }
+        if seen.insert(word.to_string()) {
+            eprintln!(
+                "warning: {}: skipping unsupported MTL statement '{word}'",
+                path.display()
+            );
+        }
+    }
 }
