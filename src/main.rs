@@ -1,3 +1,384 @@
-fn main() {
-    println!("vmerge");
+//! The `vmerge` command line: parses arguments, calls the library, prints.
+
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Duration;
+use vmerge::accel::AccelKind;
+use vmerge::integrator::Technique;
+
+#[derive(Parser)]
+#[command(
+    name = "vmerge",
+    version,
+    about = "Physically based renderer: PT, BPT, VCM and UPG"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render a scene.
+    Render(RenderArgs),
+    /// Continue a render from its EXR, with the scene, options and seed recorded in it.
+    Continue(ContinueArgs),
+    /// Merge renders of the same scene and options (different seeds), weighted by iterations.
+    Merge {
+        output: PathBuf,
+        inputs: Vec<PathBuf>,
+    },
+    /// Write a plain EXR (RGB only, no vmerge data).
+    Bake { output: PathBuf, input: PathBuf },
+    /// Drop the error series from a render.
+    Strip { output: PathBuf, input: PathBuf },
+    /// Write the relative difference |a - b| / b of two images.
+    Diff {
+        output: PathBuf,
+        a: PathBuf,
+        b: PathBuf,
+    },
+    /// Print the mean absolute and RMS error between two images.
+    Errors { a: PathBuf, b: PathBuf },
+    /// Print the mean RGB of an image.
+    Average { input: PathBuf },
+    /// Print the render time recorded in a render.
+    Time { input: PathBuf },
+    /// Print the error series of a render as CSV.
+    Measurements { input: PathBuf },
+    /// Print the trace windows of a render.
+    Traces { input: PathBuf },
+    /// Draw convergence charts (PNG or SVG by the output's extension).
+    Plot {
+        output: PathBuf,
+        inputs: Vec<PathBuf>,
+        /// One chart per trace window.
+        #[arg(long)]
+        traces: bool,
+    },
+}
+
+#[derive(Args)]
+struct RenderArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    #[arg(long, short = 't', value_enum, default_value_t = Technique::Pt)]
+    technique: Technique,
+    /// Stop after N iterations (one sample per pixel each).
+    #[arg(long, short = 'n')]
+    iterations: Option<u64>,
+    /// Stop after this time (e.g. 90s, 10m, 2h).
+    #[arg(long, value_parser = parse_duration)]
+    time: Option<Duration>,
+    /// Output EXR; a PNG preview is written next to it.
+    #[arg(long, short = 'o', default_value = "render.exr")]
+    output: PathBuf,
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Worker threads (default: all cores); the image does not depend on it.
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Camera name or index.
+    #[arg(long)]
+    camera: Option<String>,
+    /// WxH, e.g. 512x512.
+    #[arg(long, value_parser = parse_resolution)]
+    resolution: Option<[u32; 2]>,
+    #[arg(long, value_enum, default_value_t = AccelKind::default_kind())]
+    accel: AccelKind,
+    /// Reference image: record the error series in the output.
+    #[arg(long)]
+    reference: Option<PathBuf>,
+    /// Error window XxYxW: centre (X, Y), half-width W (repeatable; needs --reference).
+    #[arg(long = "trace", value_parser = parse_trace)]
+    traces: Vec<vmerge::film::TraceWindow>,
+    /// Write the image every interval (e.g. 10m).
+    #[arg(long, value_parser = parse_duration)]
+    snapshot: Option<Duration>,
+    /// Do not write the PNG preview.
+    #[arg(long)]
+    no_png: bool,
+    /// Clamp Phong materials with kd + ks > 1 instead of rejecting the scene.
+    #[arg(long)]
+    lenient: bool,
+    #[command(flatten)]
+    technique_options: TechniqueArgs,
+}
+
+#[derive(Args)]
+struct TechniqueArgs {
+    /// MIS power (2 = power heuristic, 1 = balance heuristic).
+    #[arg(long, default_value_t = 2.0)]
+    beta: f32,
+    /// Merge radius in world units (default: 0.003 x the scene's bounding-sphere diameter).
+    #[arg(long)]
+    radius: Option<f32>,
+    /// Radius shrinking exponent r_i = r_1 sqrt(i^(alpha-1)) (default 0.75 for vcm, ppm, bpm).
+    #[arg(long)]
+    alpha: Option<f32>,
+    /// Segments of a full path, light to eye; 0 = unbounded (default: the scene's).
+    #[arg(long)]
+    max_path_length: Option<u32>,
+    /// Path length in segments from which Russian roulette may end paths.
+    #[arg(long, default_value_t = 3)]
+    roulette: u32,
+    /// Vertex merging only (vcm).
+    #[arg(long)]
+    no_vc: bool,
+    /// Vertex connection only (vcm).
+    #[arg(long)]
+    no_vm: bool,
+}
+
+#[derive(Args)]
+struct ContinueArgs {
+    /// A render written by `vmerge render` (or a snapshot of one).
+    input: PathBuf,
+    /// Render N more iterations.
+    #[arg(long, short = 'n')]
+    iterations: Option<u64>,
+    /// Render for this much more time.
+    #[arg(long, value_parser = parse_duration)]
+    time: Option<Duration>,
+    /// Where to write (default: over the input).
+    #[arg(long, short = 'o')]
+    output: Option<PathBuf>,
+    /// Continue although the scene files changed since the render began.
+    #[arg(long)]
+    force: bool,
+    #[arg(long)]
+    threads: Option<usize>,
+    #[arg(long, value_enum, default_value_t = AccelKind::default_kind())]
+    accel: AccelKind,
+    #[arg(long, value_parser = parse_duration)]
+    snapshot: Option<Duration>,
+    #[arg(long)]
+    no_png: bool,
+}
+
+fn parse_duration(s: &str) -> Result<Duration, String> {
+    let s = s.trim();
+    let split = s.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(s.len());
+    let (number, unit) = s.split_at(split);
+    let value: f64 = number
+        .parse()
+        .map_err(|_| format!("'{s}' is not a duration like 90s, 10m, 2h"))?;
+    let seconds = match unit {
+        "ms" => value / 1000.0,
+        "" | "s" => value,
+        "m" | "min" => value * 60.0,
+        "h" => value * 3600.0,
+        _ => return Err(format!("'{s}': unknown unit '{unit}' (ms, s, m, h)")),
+    };
+    if !(seconds.is_finite() && seconds >= 0.0) {
+        return Err(format!("'{s}' is not a non-negative duration"));
+    }
+    Ok(Duration::from_secs_f64(seconds))
+}
+
+fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| format!("'{s}' is not WxH"))?;
+    let w: u32 = w.parse().map_err(|_| format!("'{s}' is not WxH"))?;
+    let h: u32 = h.parse().map_err(|_| format!("'{s}' is not WxH"))?;
+    if w == 0 || h == 0 {
+        return Err(format!("'{s}' has a zero side"));
+    }
+    Ok([w, h])
+}
+
+fn parse_trace(s: &str) -> Result<vmerge::film::TraceWindow, String> {
+    s.parse()
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            // Bad input (scenes, files, options) is exit code 2; anything else 1.
+            if is_input_error(&e) {
+                ExitCode::from(2)
+            } else {
+                ExitCode::FAILURE
+            }
+        }
+    }
+}
+
+fn run(cli: Cli) -> Result<()> {
+    use vmerge::tools;
+    match cli.command {
+        Command::Render(args) => render(args),
+        Command::Continue(args) => resume(args),
+        Command::Merge { output, inputs } => Ok(tools::merge(&output, &inputs)?),
+        Command::Bake { output, input } => Ok(tools::bake(&output, &input)?),
+        Command::Strip { output, input } => Ok(tools::strip(&output, &input)?),
+        Command::Diff { output, a, b } => Ok(tools::diff(&output, &a, &b)?),
+        Command::Errors { a, b } => {
+            let (mae, rmse) = tools::errors(&a, &b)?;
+            println!("{mae} {rmse}");
+            Ok(())
+        }
+        Command::Average { input } => {
+            let [r, g, b] = tools::average(&input)?;
+            println!("{r} {g} {b}");
+            Ok(())
+        }
+        Command::Time { input } => {
+            println!("{}", tools::metadata(&input)?.render_seconds);
+            Ok(())
+        }
+        Command::Measurements { input } => {
+            print!("{}", tools::measurements(&input)?);
+            Ok(())
+        }
+        Command::Traces { input } => {
+            for t in tools::traces(&input)? {
+                println!("{}x{}x{}", t.x, t.y, t.half_width);
+            }
+            Ok(())
+        }
+        Command::Plot {
+            output,
+            inputs,
+            traces,
+        } => Ok(tools::plot(&output, &inputs, traces)?),
+    }
+}
+
+fn set_threads(threads: Option<usize>) -> Result<()> {
+    if let Some(n) = threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .context("setting the thread count")?;
+    }
+    Ok(())
+}
+
+fn render(args: RenderArgs) -> Result<()> {
+    set_threads(args.threads)?;
+    let t = args.technique_options;
+    let options = vmerge::render::RenderOptions {
+        technique: args.technique,
+        seed: args.seed,
+        camera: args.camera,
+        resolution: args.resolution,
+        beta: t.beta,
+        radius: t.radius,
+        alpha: t.alpha,
+        max_path_length: t.max_path_length,
+        roulette: t.roulette,
+        no_vc: t.no_vc,
+        no_vm: t.no_vm,
+    };
+    let setup = vmerge::render::NewRender {
+        scene: args.scene,
+        options,
+        accel: args.accel,
+        lenient: args.lenient,
+        output: args.output,
+        png: !args.no_png,
+        snapshot_every: args.snapshot,
+        reference: args.reference,
+        traces: args.traces,
+    };
+    let stop = StopAfter {
+        iterations: args.iterations,
+        time: args.time,
+    };
+    if stop.iterations.is_none() && stop.time.is_none() {
+        anyhow::bail!(vmerge::render::RenderError::NoStop);
+    }
+    let scene = setup.load_scene()?;
+    let job = setup.job(&scene)?;
+    run_job(job, stop)
+}
+
+fn resume(args: ContinueArgs) -> Result<()> {
+    set_threads(args.threads)?;
+    let (film, metadata) = vmerge::film::exr::read_render(&args.input)?;
+    let scene = vmerge::render::load_for_continue(&metadata, args.accel, args.force)?;
+    let output = args.output.unwrap_or(args.input);
+    let job =
+        vmerge::render::continued_job(&scene, film, metadata, output, !args.no_png, args.snapshot)?;
+    let stop = StopAfter {
+        iterations: args.iterations.map(|n| job.film.iterations + n),
+        time: args.time,
+    };
+    if stop.iterations.is_none() && stop.time.is_none() {
+        anyhow::bail!(vmerge::render::RenderError::NoStop);
+    }
+    run_job(job, stop)
+}
+
+use vmerge::render::{RenderJob, StopAfter};
+
+fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
+    let flag = vmerge::render::StopFlag::default();
+    let handler_flag = flag.clone();
+    ctrlc::set_handler(move || {
+        // The first signal finishes the iteration and writes the image; a second one quits.
+        if handler_flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
+            std::process::exit(130);
+        }
+    })
+    .context("installing the signal handler")?;
+    let bar = indicatif::ProgressBar::new(stop.iterations.unwrap_or(0));
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos} it {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    job.run(stop, &flag, |p| {
+        bar.set_position(p.iterations);
+        let mut msg = format!(
+            "{:.2} Msamples/s, {:.2} Mrays/s",
+            p.samples_per_second / 1e6,
+            p.rays_per_second / 1e6
+        );
+        if let Some(rmse) = p.rmse {
+            msg.push_str(&format!(", rmse {rmse:.4e}"));
+        }
+        bar.set_message(msg);
+    })?;
+    bar.finish();
+    eprintln!(
+        "wrote {} ({} iterations, {:.1} s{})",
+        job.output.display(),
+        job.film.iterations,
+        job.metadata.render_seconds,
+        if job.metadata.dropped_samples > 0 {
+            format!(
+                ", {} non-finite samples dropped",
+                job.metadata.dropped_samples
+            )
+        } else {
+            String::new()
+        }
+    );
+    Ok(())
+}
+
+/// Whether an error is the user's input (a scene, a file, an option) rather than the system.
+fn is_input_error(e: &anyhow::Error) -> bool {
+    use vmerge::film::FilmError;
+    use vmerge::render::RenderError;
+    let film = |f: &FilmError| !matches!(f, FilmError::Write { .. });
+    e.chain().any(|cause| {
+        if let Some(f) = cause.downcast_ref::<FilmError>() {
+            film(f)
+        } else if let Some(r) = cause.downcast_ref::<RenderError>() {
+            match r {
+                RenderError::Film(f) => film(f),
+                _ => true,
+            }
+        } else {
+            cause.downcast_ref::<vmerge::scene::SceneError>().is_some()
+        }
+    })
 }

@@ -1,8 +1,32 @@
 //! The progressive render loop: iterations, time limit, progress and reference errors.
 
 use crate::accel::AccelKind;
-use crate::integrator::Technique;
+use crate::color::Rgb;
+use crate::film::{exr, png, ErrorTracker, Film, FilmError, Metadata, TraceWindow};
+use crate::integrator::{self, RenderContext, Technique};
+use crate::scene::{Camera, LoadOptions, Scene, SceneError};
 use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum RenderError {
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    #[error(transparent)]
+    Film(#[from] FilmError),
+    #[error("say when to stop: --iterations N and/or --time T")]
+    NoStop,
+    #[error("{file}: the scene changed since this render began (hash {recorded} recorded, {now} now); use --force to continue anyway")]
+    SceneChanged {
+        file: PathBuf,
+        recorded: String,
+        now: String,
+    },
+}
 
 /// Every option that changes the image. Serialized into the EXR so `continue` can resume.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -43,33 +67,277 @@ impl Default for RenderOptions {
     }
 }
 
-/// How the scene's ray queries are answered; not part of the image.
-#[derive(Clone, Copy, Debug)]
-pub struct Execution {
-    pub accel: AccelKind,
-    pub threads: Option<usize>,
-}
-
 /// Renders `iterations` iterations of `options.technique` and returns the film: the library
 /// call behind `vmerge render --iterations N` without progress, time limit or files.
 pub fn render_iterations(
-    scene: &crate::scene::Scene,
+    scene: &Scene,
     options: &RenderOptions,
     iterations: u64,
-) -> Result<crate::film::Film, crate::scene::SceneError> {
+) -> Result<Film, SceneError> {
     let [width, height] = options.resolution.unwrap_or(scene.defaults.resolution);
-    let camera = crate::scene::Camera::new(scene.camera(options.camera.as_deref())?, width, height);
-    let mut film = crate::film::Film::new(width, height);
-    let mut integrator = crate::integrator::create(crate::integrator::RenderContext {
+    let camera = Camera::new(scene.camera(options.camera.as_deref())?, width, height);
+    let mut film = Film::new(width, height);
+    let mut integrator = integrator::create(RenderContext {
         scene,
         camera,
         options,
     });
-    let mut frame = vec![crate::color::Rgb::BLACK; film.pixel_count()];
+    let mut frame = vec![Rgb::BLACK; film.pixel_count()];
     for iteration in 0..iterations {
-        frame.fill(crate::color::Rgb::BLACK);
+        frame.fill(Rgb::BLACK);
         integrator.render_iteration(iteration, &mut frame);
         film.add_iteration(&frame);
     }
     Ok(film)
+}
+
+/// When a render stops: after a number of iterations (in total, a continued render's earlier
+/// iterations included), after a time (of this run), or whichever comes first.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StopAfter {
+    pub iterations: Option<u64>,
+    pub time: Option<Duration>,
+}
+
+/// What the loop reports after every iteration, for a progress display.
+#[derive(Clone, Debug)]
+pub struct Progress {
+    pub iterations: u64,
+    pub elapsed: Duration,
+    pub samples_per_second: f64,
+    pub rays_per_second: f64,
+    pub rmse: Option<f64>,
+}
+
+/// The state of a render: its film, its metadata and what it needs to go on.
+pub struct RenderJob<'a> {
+    pub scene: &'a Scene,
+    pub options: RenderOptions,
+    pub film: Film,
+    pub metadata: Metadata,
+    /// Errors against a reference image, recorded in the metadata.
+    pub tracker: Option<ErrorTracker>,
+    /// Where snapshots and the final image go.
+    pub output: PathBuf,
+    pub png: bool,
+    pub snapshot_every: Option<Duration>,
+}
+
+/// Set by a signal handler (or a test) to stop the render after the current iteration.
+pub type StopFlag = Arc<AtomicBool>;
+
+impl RenderJob<'_> {
+    /// Runs iterations until `stop` says so or `stop_flag` is raised, writing a snapshot every
+    /// `snapshot_every` and the final image at the end.
+    pub fn run(
+        &mut self,
+        stop: StopAfter,
+        stop_flag: &StopFlag,
+        mut on_progress: impl FnMut(&Progress),
+    ) -> Result<(), RenderError> {
+        let camera = Camera::new(
+            self.scene.camera(self.options.camera.as_deref())?,
+            self.film.width,
+            self.film.height,
+        );
+        let mut integrator = integrator::create(RenderContext {
+            scene: self.scene,
+            camera,
+            options: &self.options,
+        });
+        let mut frame = vec![Rgb::BLACK; self.film.pixel_count()];
+        let start = Instant::now();
+        let earlier_seconds = self.metadata.render_seconds;
+        let mut last_snapshot = start;
+        let mut last_error = None::<Instant>;
+        let mut rays = 0u64;
+        let mut iterations_here = 0u64;
+        loop {
+            let done_iterations = stop.iterations.is_some_and(|n| self.film.iterations >= n);
+            let done_time = stop.time.is_some_and(|t| start.elapsed() >= t);
+            if done_iterations || done_time || stop_flag.load(Ordering::Relaxed) {
+                break;
+            }
+            frame.fill(Rgb::BLACK);
+            let stats = integrator.render_iteration(self.film.iterations, &mut frame);
+            self.film.add_iteration(&frame);
+            iterations_here += 1;
+            rays += stats.rays;
+            self.metadata.dropped_samples += stats.dropped_samples;
+            self.metadata.iterations = self.film.iterations;
+            let elapsed = start.elapsed();
+            self.metadata.render_seconds = earlier_seconds + elapsed.as_secs_f64();
+            // Errors every iteration, but at most once a second: measuring a large image costs.
+            let mut rmse = None;
+            if let Some(tracker) = &self.tracker {
+                if last_error.is_none_or(|t| t.elapsed() >= Duration::from_secs(1)) {
+                    let sample = tracker.measure(
+                        &self.film.mean(),
+                        self.metadata.render_seconds,
+                        self.film.iterations,
+                    );
+                    rmse = Some(sample.rmse);
+                    self.metadata.errors.push(sample);
+                    last_error = Some(Instant::now());
+                }
+            }
+            let seconds = elapsed.as_secs_f64().max(1e-9);
+            on_progress(&Progress {
+                iterations: self.film.iterations,
+                elapsed,
+                samples_per_second: (iterations_here * self.film.pixel_count() as u64) as f64
+                    / seconds,
+                rays_per_second: rays as f64 / seconds,
+                rmse,
+            });
+            if self
+                .snapshot_every
+                .is_some_and(|every| last_snapshot.elapsed() >= every)
+            {
+                self.metadata.statistics = integrator.statistics();
+                self.write()?;
+                last_snapshot = Instant::now();
+            }
+        }
+        self.metadata.statistics = integrator.statistics();
+        self.write()
+    }
+
+    /// Writes the image (and its preview) atomically.
+    pub fn write(&self) -> Result<(), RenderError> {
+        exr::write_render(&self.output, &self.film, &self.metadata)?;
+        if self.png {
+            png::write_preview(
+                &self.output.with_extension("png"),
+                &self.film.mean(),
+                self.film.width,
+                self.film.height,
+            )?;
+        }
+        Ok(())
+    }
+}
+
+/// A render about to start: everything `vmerge render` was told.
+pub struct NewRender {
+    pub scene: PathBuf,
+    pub options: RenderOptions,
+    pub accel: AccelKind,
+    pub lenient: bool,
+    pub output: PathBuf,
+    pub png: bool,
+    pub snapshot_every: Option<Duration>,
+    pub reference: Option<PathBuf>,
+    pub traces: Vec<TraceWindow>,
+}
+
+impl NewRender {
+    pub fn load_scene(&self) -> Result<Scene, SceneError> {
+        crate::scene::load(
+            &self.scene,
+            &LoadOptions {
+                accel: self.accel,
+                lenient: self.lenient,
+            },
+        )
+    }
+
+    /// The job over `scene`, with a fresh film and the reference loaded and checked.
+    pub fn job<'a>(&self, scene: &'a Scene) -> Result<RenderJob<'a>, RenderError> {
+        let [width, height] = self.options.resolution.unwrap_or(scene.defaults.resolution);
+        scene.camera(self.options.camera.as_deref())?;
+        let canonical = std::fs::canonicalize(&self.scene).unwrap_or_else(|_| self.scene.clone());
+        let mut metadata = Metadata::new(
+            canonical.to_string_lossy().into_owned(),
+            scene.source_hash.clone(),
+            self.options.clone(),
+            scene.accel.name(),
+        );
+        metadata.traces = self.traces.clone();
+        let tracker = match &self.reference {
+            Some(path) => {
+                metadata.reference = Some(path.to_string_lossy().into_owned());
+                let image = exr::read_image(path)?;
+                Some(ErrorTracker::new(
+                    image,
+                    path,
+                    width,
+                    height,
+                    self.traces.clone(),
+                )?)
+            }
+            None => None,
+        };
+        Ok(RenderJob {
+            scene,
+            options: self.options.clone(),
+            film: Film::new(width, height),
+            metadata,
+            tracker,
+            output: self.output.clone(),
+            png: self.png,
+            snapshot_every: self.snapshot_every,
+        })
+    }
+}
+
+/// Loads the scene a render was made from, refusing one whose files changed since unless
+/// `force`.
+pub fn load_for_continue(
+    metadata: &Metadata,
+    accel: AccelKind,
+    force: bool,
+) -> Result<Scene, RenderError> {
+    let path = PathBuf::from(&metadata.scene);
+    let scene = crate::scene::load(
+        &path,
+        &LoadOptions {
+            accel,
+            lenient: false,
+        },
+    )?;
+    if scene.source_hash != metadata.scene_hash && !force {
+        return Err(RenderError::SceneChanged {
+            file: path,
+            recorded: metadata.scene_hash.clone(),
+            now: scene.source_hash.clone(),
+        });
+    }
+    Ok(scene)
+}
+
+/// The job that goes on with a render read from its EXR: same options and seed, next
+/// iteration index, same reference and trace windows.
+pub fn continued_job(
+    scene: &Scene,
+    film: Film,
+    metadata: Metadata,
+    output: PathBuf,
+    png: bool,
+    snapshot_every: Option<Duration>,
+) -> Result<RenderJob<'_>, RenderError> {
+    let tracker = match &metadata.reference {
+        Some(path) => {
+            let path = PathBuf::from(path);
+            let image = exr::read_image(&path)?;
+            Some(ErrorTracker::new(
+                image,
+                &path,
+                film.width,
+                film.height,
+                metadata.traces.clone(),
+            )?)
+        }
+        None => None,
+    };
+    Ok(RenderJob {
+        scene,
+        options: metadata.options.clone(),
+        film,
+        metadata,
+        tracker,
+        output,
+        png,
+        snapshot_every,
+    })
 }
