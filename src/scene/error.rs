@@ -5,7 +5,7 @@ use thiserror::Error;
 /// Everything that can be wrong with a scene. Each message names the file and the entry.
 #[derive(Debug, Error)]
 pub enum SceneError {
-    #[error("{file}: cannot read: {source}")]
+    #[error("{file}: cannot read")]
     Io {
         file: PathBuf,
         source: std::io::Error,
