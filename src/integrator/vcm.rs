@@ -77,6 +77,16 @@ pub struct LightVertex {
     pub d_vm: f32,
 }
 
+/// What one task of the light pass produces: vertices and where each path's end, camera
+/// splats, counters.
+#[derive(Default)]
+struct LightChunk {
+    vertices: Vec<LightVertex>,
+    ends: Vec<u32>,
+    splats: Vec<(usize, Rgb)>,
+    stats: IterationStats,
+}
+
 /// The state of a sub-path being traced (SmallVCM's SubPathState).
 #[derive(Clone, Copy, Debug)]
 struct SubPath {
@@ -179,7 +189,7 @@ impl<'a> VertexCm<'a> {
         let e = light.emit(u_pos, u_dir)?;
         let emission_pdf_w = e.emission_pdf_w * pick;
         let direct_pdf_a = e.direct_pdf_a * pick;
-        if !(emission_pdf_w > 0.0) {
+        if emission_pdf_w.is_nan() || emission_pdf_w <= 0.0 {
             return None;
         }
         let d_vc = if light.is_delta() {
@@ -617,38 +627,36 @@ impl Integrator for VertexCm<'_> {
         let w = self.weights()(iteration);
         let paths = frame.len();
         // Light pass: fixed chunks of paths, concatenated in order.
-        let chunks: Vec<(
-            Vec<LightVertex>,
-            Vec<u32>,
-            Vec<(usize, Rgb)>,
-            IterationStats,
-        )> = (0..paths)
+        let chunks: Vec<LightChunk> = (0..paths)
             .into_par_iter()
             .step_by(LIGHT_CHUNK)
             .map(|start| {
-                let mut vertices = Vec::new();
-                let mut ends = Vec::with_capacity(LIGHT_CHUNK);
-                let mut splats = Vec::new();
-                let mut stats = IterationStats::default();
+                let mut chunk = LightChunk::default();
                 for index in start..(start + LIGHT_CHUNK).min(paths) {
                     self.trace_light_path(
                         &w,
                         iteration,
                         index,
-                        &mut vertices,
-                        &mut splats,
-                        &mut stats,
+                        &mut chunk.vertices,
+                        &mut chunk.splats,
+                        &mut chunk.stats,
                     );
-                    ends.push(vertices.len() as u32);
+                    chunk.ends.push(chunk.vertices.len() as u32);
                 }
-                (vertices, ends, splats, stats)
+                chunk
             })
             .collect();
         let mut vertices = Vec::new();
         let mut path_ends = Vec::with_capacity(paths + 1);
         path_ends.push(0usize);
         let mut stats = IterationStats::default();
-        for (chunk_vertices, ends, splats, chunk_stats) in chunks {
+        for LightChunk {
+            vertices: chunk_vertices,
+            ends,
+            splats,
+            stats: chunk_stats,
+        } in chunks
+        {
             let base = vertices.len();
             path_ends.extend(ends.iter().map(|&e| base + e as usize));
             vertices.extend(chunk_vertices);
