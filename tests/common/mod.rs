@@ -1,0 +1,193 @@
+//! Shared helpers of the statistical tests: render iteration by iteration and keep, per pixel,
+//! the mean and the variance of the mean, so bounds come from the noise itself.
+#![allow(dead_code)]
+
+use vmerge::accel::AccelKind;
+use vmerge::color::Rgb;
+use vmerge::integrator::{self, RenderContext, Technique};
+use vmerge::render::RenderOptions;
+use vmerge::scene::{self, Camera, LoadOptions, Scene};
+
+pub fn load(name: &str) -> Scene {
+    let path = format!("{}/scenes/{name}/scene.toml", env!("CARGO_MANIFEST_DIR"));
+    let options = LoadOptions {
+        accel: AccelKind::default_kind(),
+        lenient: false,
+    };
+    scene::load(path.as_ref(), &options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Options for a square test render. Each technique gets its own seed: renders compared with
+/// each other must be independent, and equal seeds would share the eye paths' random numbers.
+pub fn options(technique: Technique, size: u32) -> RenderOptions {
+    RenderOptions {
+        technique,
+        resolution: Some([size, size]),
+        seed: 1000 + technique as u64,
+        ..Default::default()
+    }
+}
+
+/// [`options`] through the scenes' "floor" camera, which sees no emitter directly.
+pub fn floor_view(technique: Technique, size: u32) -> RenderOptions {
+    RenderOptions {
+        camera: Some("floor".into()),
+        ..options(technique, size)
+    }
+}
+
+/// Per-pixel statistics of the channel average over independent iterations.
+pub struct PixelStats {
+    pub mean: Vec<f64>,
+    /// Variance of each pixel's mean (sample variance / iterations).
+    pub var_of_mean: Vec<f64>,
+    pub dropped: u64,
+}
+
+impl PixelStats {
+    pub fn image_mean(&self) -> f64 {
+        self.mean.iter().sum::<f64>() / self.mean.len() as f64
+    }
+
+    /// Standard error of the image mean (pixels are independent).
+    pub fn image_se(&self) -> f64 {
+        self.var_of_mean.iter().sum::<f64>().sqrt() / self.mean.len() as f64
+    }
+}
+
+/// Renders `iterations` (a power of two, at least 256) iterations.
+pub fn render_stats(scene: &Scene, options: &RenderOptions, iterations: u64) -> PixelStats {
+    render_until(scene, options, 0.0, iterations)
+}
+
+/// Batches of iterations whose means give each pixel's variance. Path-traced pixels are
+/// skewed (rare fireflies), which correlates a pixel's sample mean with its sample variance and
+/// biases standardised differences; means of batches are far closer to normal.
+const BATCHES: usize = 32;
+
+/// Renders until the relative standard error of the image mean is at most `rel_se` (checked
+/// at every power of two from 256 iterations on) or `max_iterations` (a power of two) are done.
+pub fn render_until(
+    scene: &Scene,
+    options: &RenderOptions,
+    rel_se: f64,
+    max_iterations: u64,
+) -> PixelStats {
+    let [w, h] = options.resolution.expect("tests set a resolution");
+    let camera = Camera::new(scene.camera(options.camera.as_deref()).unwrap(), w, h);
+    let mut integrator = integrator::create(RenderContext {
+        scene,
+        camera,
+        options,
+    });
+    let n = (w * h) as usize;
+    let mut batches = vec![vec![0.0f64; n]; BATCHES];
+    let mut batch_size = 1u64;
+    let mut frame = vec![Rgb::BLACK; n];
+    let mut dropped = 0;
+    let mut iteration = 0u64;
+    loop {
+        frame.fill(Rgb::BLACK);
+        dropped += integrator
+            .render_iteration(iteration, &mut frame)
+            .dropped_samples;
+        let batch = &mut batches[(iteration / batch_size) as usize];
+        for (b, c) in batch.iter_mut().zip(&frame) {
+            *b += c.average() as f64;
+        }
+        iteration += 1;
+        if iteration == BATCHES as u64 * batch_size {
+            // All batches are full: halve their number by merging pairs.
+            for j in 0..BATCHES / 2 {
+                let merged: Vec<f64> = batches[2 * j]
+                    .iter()
+                    .zip(&batches[2 * j + 1])
+                    .map(|(x, y)| x + y)
+                    .collect();
+                batches[j] = merged;
+            }
+            batches[BATCHES / 2..].iter_mut().for_each(|b| b.fill(0.0));
+            batch_size *= 2;
+        }
+        if iteration >= max_iterations || (iteration >= 256 && iteration.is_power_of_two()) {
+            let stats = pixel_stats(&batches[..BATCHES / 2], batch_size, dropped);
+            if iteration >= max_iterations || stats.image_se() <= rel_se * stats.image_mean().abs()
+            {
+                return stats;
+            }
+        }
+    }
+}
+
+/// Mean and variance of the mean from full batches of `batch_size` iterations each.
+fn pixel_stats(batches: &[Vec<f64>], batch_size: u64, dropped: u64) -> PixelStats {
+    let b = batches.len() as f64;
+    let n = batches[0].len();
+    let mut mean = vec![0.0; n];
+    let mut var_of_mean = vec![0.0; n];
+    for i in 0..n {
+        let means: Vec<f64> = batches
+            .iter()
+            .map(|batch| batch[i] / batch_size as f64)
+            .collect();
+        let m = means.iter().sum::<f64>() / b;
+        let var = means.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (b - 1.0);
+        mean[i] = m;
+        var_of_mean[i] = var / b;
+    }
+    PixelStats {
+        mean,
+        var_of_mean,
+        dropped,
+    }
+}
+
+/// RMS over pixels of the standardised differences (a - b) / sqrt(var_a + var_b): about 1
+/// when the two renders estimate the same image, whatever each pixel's noise. Pixels that
+/// are exact in both renders (zero variance) must agree exactly and are left out of the RMS.
+pub fn standardised_rms(a: &PixelStats, b: &PixelStats) -> f64 {
+    let mut sum = 0.0;
+    let mut n = 0usize;
+    for i in 0..a.mean.len() {
+        let var = a.var_of_mean[i] + b.var_of_mean[i];
+        let d = a.mean[i] - b.mean[i];
+        if var > 0.0 {
+            sum += d * d / var;
+            n += 1;
+        } else {
+            assert!(
+                d.abs() <= 1e-6 * a.mean[i].abs().max(1.0),
+                "pixel {i}: exact values {} and {} differ",
+                a.mean[i],
+                b.mean[i]
+            );
+        }
+    }
+    (sum / n.max(1) as f64).sqrt()
+}
+
+/// Two unbiased renders of one image agree when (1) their means differ by less than 1% or 4
+/// combined standard errors, whichever is larger, where the renders are long enough that 4
+/// standard errors are at most 2% of the mean (a 2% bias is always caught, 1% where the noise
+/// allows), and (2) the per-pixel differences are as large as the noise predicts: the RMS of
+/// the standardised difference image ([`standardised_rms`]) lies within 10% of 1. A bias in a
+/// region raises it; renders that share random numbers lower it. With ~1000 pixels and 16
+/// batches its own noise is a few percent (and t-distributed ratios raise it by ~2%).
+pub fn assert_agree(label: &str, a: &PixelStats, b: &PixelStats) {
+    let (ma, mb) = (a.image_mean(), b.image_mean());
+    let se = (a.image_se().powi(2) + b.image_se().powi(2)).sqrt();
+    assert!(
+        4.0 * se <= 0.02 * mb.abs(),
+        "{label}: too noisy to see a 2% bias (se {se}, mean {mb})"
+    );
+    let tolerance = (0.01 * mb.abs()).max(4.0 * se);
+    assert!(
+        (ma - mb).abs() <= tolerance,
+        "{label}: means {ma} and {mb} differ by more than {tolerance} (se {se})"
+    );
+    let ratio = standardised_rms(a, b);
+    assert!(
+        (0.9..=1.1).contains(&ratio),
+        "{label}: RMS of the standardised difference = {ratio}"
+    );
+}
