@@ -191,11 +191,16 @@ fn draw<DB: DrawingBackend>(
             .margin(10)
             .x_label_area_size(40)
             .y_label_area_size(70)
-            .build_cartesian_2d((t0..t1).log_scale(), (e0..e1).log_scale())
+            .build_cartesian_2d(
+                (t0..t1).log_scale().with_key_points(log_ticks(t0, t1)),
+                (e0..e1).log_scale().with_key_points(log_ticks(e0, e1)),
+            )
             .map_err(|e| e.to_string())?;
         ctx.configure_mesh()
             .x_desc("time [s]")
             .y_desc("RMS error")
+            .x_label_formatter(&|v| tick(*v))
+            .y_label_formatter(&|v| tick(*v))
             .label_style((FONT, 14))
             .axis_desc_style((FONT, 16))
             .draw()
@@ -213,7 +218,9 @@ fn draw<DB: DrawingBackend>(
                     PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
                 });
         }
+        // Errors fall with time, so the upper right corner is the free one.
         ctx.configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .label_font((FONT, 14))
@@ -221,6 +228,45 @@ fn draw<DB: DrawingBackend>(
             .map_err(|e| e.to_string())?;
     }
     root.present().map_err(|e| e.to_string())
+}
+
+/// Round values between `lo` and `hi` (> 0) for a log axis: 1, 2, ..., 9 times the powers of
+/// ten when the range spans less than a decade, 1, 2, 3, 5 times them up to 2.5 decades, 1, 2, 5
+/// times them up to five, the powers alone beyond (every few powers over many decades).
+fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let decades = (hi / lo).log10();
+    let mantissas: &[f64] = if decades < 1.0 {
+        &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]
+    } else if decades < 2.5 {
+        &[1.0, 2.0, 3.0, 5.0]
+    } else if decades < 5.0 {
+        &[1.0, 2.0, 5.0]
+    } else {
+        &[1.0]
+    };
+    let step = (decades / 8.0).ceil().max(1.0) as i32;
+    let first = lo.log10().floor() as i32;
+    let last = hi.log10().ceil() as i32;
+    (first..=last)
+        .step_by(step as usize)
+        .flat_map(|e| mantissas.iter().map(move |m| m * 10f64.powi(e)))
+        .filter(|v| (lo..=hi).contains(v))
+        .collect()
+}
+
+/// A tick label with three significant digits at most: `0.25`, `120`, `3e-5`.
+fn tick(v: f64) -> String {
+    if v == 0.0 || (1e-3..1e5).contains(&v.abs()) {
+        let digits = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+        let text = format!("{v:.digits$}");
+        if text.contains('.') {
+            text.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            text
+        }
+    } else {
+        format!("{v:.1e}")
+    }
 }
 
 /// A positive range covering `values`, padded so a single value still makes an axis.
