@@ -45,7 +45,10 @@ fn metadata() -> Metadata {
     m.iterations = 37;
     m.render_seconds = 12.345678901234567;
     m.dropped_samples = 2;
-    m.statistics = vec![("light subpaths".into(), "384".into())];
+    m.statistics = vec![
+        ("light subpaths".into(), "384".into()),
+        ("note".into(), "C:\\scènes\\u{41}\tbox\n∑".into()),
+    ];
     m.reference = Some("référence.exr".into());
     m.traces = vec![TraceWindow {
         x: 4,

@@ -295,19 +295,20 @@ pub fn read_render(path: &Path) -> Result<(Film, Metadata), FilmError> {
     Ok((film, metadata))
 }
 
-/// EXR text is Latin-1; anything else (a non-ASCII path) is escaped as `\u{...}`.
+/// EXR text is Latin-1; anything else (a non-ASCII path) is escaped as `\u{...}`, and so is
+/// the backslash itself, so that [`decode_text`] can tell the two apart.
 fn encode_text(s: &str) -> Text {
-    let escaped: String = s
-        .chars()
-        .map(|c| {
-            if c.is_ascii() && c != '\\' {
-                c.to_string()
-            } else {
-                format!("\\u{{{:x}}}", c as u32)
-            }
-        })
-        .collect();
-    Text::from_bytes_unchecked(escaped.bytes().collect())
+    use std::fmt::Write;
+    let mut escaped = String::with_capacity(s.len());
+    for c in s.chars() {
+        if c.is_ascii() && c != '\\' {
+            escaped.push(c);
+        } else {
+            // Writing to a String cannot fail.
+            let _ = write!(escaped, "\\u{{{:x}}}", c as u32);
+        }
+    }
+    Text::from_bytes_unchecked(escaped.into_bytes().into())
 }
 
 fn decode_text(t: &Text) -> String {

@@ -12,6 +12,8 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 const FONT: &str = "vmerge-sans";
+/// Series of at most this many samples are drawn with a mark per sample.
+const MARKED: usize = 30;
 /// Size of one chart in pixels; a grid of charts is a multiple of it.
 const CHART: (u32, u32) = (960, 640);
 
@@ -207,10 +209,16 @@ fn draw<DB: DrawingBackend>(
             .map_err(|e| e.to_string())?;
         for (i, s) in series.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
-            let points = s.points[chart]
+            let points: Vec<(f64, f64)> = s.points[chart]
                 .iter()
                 .copied()
-                .filter(|&(t, e)| t > 0.0 && e > 0.0);
+                .filter(|&(t, e)| t > 0.0 && e > 0.0)
+                .collect();
+            // Short series get a mark per sample, so that even one sample shows.
+            if points.len() <= MARKED {
+                ctx.draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))
+                    .map_err(|e| e.to_string())?;
+            }
             ctx.draw_series(LineSeries::new(points, color.stroke_width(2)))
                 .map_err(|e| e.to_string())?
                 .label(s.label.clone())
