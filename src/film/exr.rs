@@ -24,14 +24,20 @@ const SUM_CHANNELS: [[&str; 2]; 3] = [
     ["vmerge.sum.B.hi", "vmerge.sum.B.lo"],
 ];
 
+/// What can go wrong with an image file; every message starts with the file's name.
 #[derive(Debug, Error)]
 pub enum FilmError {
+    /// Missing, unreadable, truncated, or not an EXR.
     #[error("{file}: cannot read: {message}")]
     Read { file: PathBuf, message: String },
+    /// The file (or its temporary sibling) could not be written; the target is untouched.
     #[error("{file}: cannot write: {message}")]
     Write { file: PathBuf, message: String },
+    /// An EXR without vmerge's sums or metadata where a render is needed.
     #[error("{file}: not a vmerge render ({message})")]
     NotARender { file: PathBuf, message: String },
+    /// A readable file that does not fit: no colour channels, another resolution, renders that
+    /// cannot be merged, ...
     #[error("{file}: {message}")]
     Invalid { file: PathBuf, message: String },
 }
@@ -162,6 +168,8 @@ fn read_any(path: &Path) -> Result<AnyImage, FilmError> {
         })
 }
 
+/// The channel `name` if it has one sample per pixel; subsampled channels (chroma in
+/// luminance-chroma files) are not colour vmerge can use.
 fn channel<'a>(image: &'a AnyImage, name: &str) -> Option<&'a FlatSamples> {
     image
         .layer_data
@@ -170,6 +178,7 @@ fn channel<'a>(image: &'a AnyImage, name: &str) -> Option<&'a FlatSamples> {
         .iter()
         .find(|c| c.name.to_string() == name)
         .map(|c| &c.sample_data)
+        .filter(|samples| samples.len() == image.layer_data.size.area())
 }
 
 fn to_f32(samples: &FlatSamples) -> Vec<f32> {

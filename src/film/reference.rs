@@ -117,7 +117,7 @@ impl ErrorTracker {
 mod tests {
     use super::*;
 
-    fn image(width: u32, height: u32, f: impl Fn(u32, u32) -> Rgb) -> Image {
+    fn image(width: u32, height: u32, mut f: impl FnMut(u32, u32) -> Rgb) -> Image {
         let pixels = (0..height)
             .flat_map(|y| (0..width).map(move |x| (x, y)))
             .map(|(x, y)| f(x, y))
@@ -168,6 +168,23 @@ mod tests {
         assert_eq!(e.mae, 16.0 / 128.0);
         assert_eq!(e.rmse, (16.0f64 / 128.0).sqrt());
         assert_eq!(e.traces, vec![[1.0, 1.0], [0.0, 0.0]]);
+    }
+
+    #[test]
+    fn errors_do_not_depend_on_the_thread_count() {
+        let mut rng = crate::sampling::Rng::from_seed(3, 0);
+        let mut noise = |_, _| Rgb::new(rng.next_f32(), rng.next_f32() * 1e3, rng.next_f32());
+        let a = image(64, 64, &mut noise);
+        let b = image(64, 64, &mut noise);
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let (mae, rmse) = pool.install(|| errors_in(&a.pixels, &b.pixels, 64, (0, 0, 64, 64)));
+            (mae.to_bits(), rmse.to_bits())
+        };
+        assert_eq!(run(1), run(3));
     }
 
     #[test]
