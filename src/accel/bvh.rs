@@ -4,7 +4,7 @@
 //! Triangles use the watertight test of Woop, Benthin and Wald (2013), as pbrt-v4 does, so rays
 //! through shared edges and vertices never slip between two triangles.
 
-use super::{Accel, AccelError, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
+use super::{sphere_roots, Accel, AccelError, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
 use glam::Vec3;
 
 /// Axis-aligned box.
@@ -154,15 +154,18 @@ impl Bvh {
                                     ng,
                                 }),
                             Primitive::Sphere(i) => {
-                                intersect_sphere(&self.spheres[i as usize], ray, tmax).map(
-                                    |(t, ng)| Hit {
+                                let s = &self.spheres[i as usize];
+                                sphere_roots(s, ray)
+                                    .and_then(|r| {
+                                        r.into_iter().find(|&t| t >= ray.tmin && t <= tmax)
+                                    })
+                                    .map(|t| Hit {
                                         t,
                                         primitive,
                                         u: 0.0,
                                         v: 0.0,
-                                        ng,
-                                    },
-                                )
+                                        ng: (ray.at(t) - s.center).normalize(),
+                                    })
                             }
                         };
                         if let Some(hit) = hit {
@@ -384,38 +387,6 @@ impl WatertightRay {
         let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
         Some((t, v * inv_det, w * inv_det, ng))
     }
-}
-
-/// Nearest root of the sphere equation in `[tmin, tmax]`: the far one when the near one is
-/// out of range, so a ray starting inside a sphere hits its far side.
-fn intersect_sphere(s: &Sphere, ray: &Ray, tmax: f32) -> Option<(f32, Vec3)> {
-    // Solve in f64 relative to the centre: the discriminant cancels badly in f32 for rays that
-    // start far away or graze the sphere.
-    let o = (ray.origin - s.center).as_dvec3();
-    let d = ray.dir.as_dvec3();
-    let a = d.length_squared();
-    let half_b = o.dot(d);
-    let c = o.length_squared() - (s.radius as f64) * (s.radius as f64);
-    let disc = half_b * half_b - a * c;
-    if disc < 0.0 {
-        return None;
-    }
-    let root = disc.sqrt();
-    let q = if half_b > 0.0 {
-        -half_b - root
-    } else {
-        -half_b + root
-    };
-    let (mut t0, mut t1) = (q / a, c / q);
-    if t0 > t1 {
-        std::mem::swap(&mut t0, &mut t1);
-    }
-    let t = [t0, t1]
-        .into_iter()
-        .map(|t| t as f32)
-        .find(|&t| t >= ray.tmin && t <= tmax)?;
-    let ng = (ray.at(t) - s.center).normalize();
-    Some((t, ng))
 }
 
 impl Accel for Bvh {

@@ -5,7 +5,7 @@
 //! spheres as one sphere-point geometry; MEDIUM build quality (shared/notes/embree.md: HIGH
 //! costs several times the build for ~13% faster traversal). Written against Embree 3's API.
 
-use super::{Accel, AccelError, Geometry, Hit, Primitive, Ray, PACKET};
+use super::{sphere_roots, Accel, AccelError, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
 use embree_sys as sys;
 use glam::Vec3;
 use std::cell::Cell;
@@ -45,7 +45,7 @@ pub struct EmbreeScene {
     _indices: Vec<[u32; 3]>,
     _spheres: Vec<[f32; 4]>,
     triangles: Vec<[Vec3; 3]>,
-    sphere_centers: Vec<Vec3>,
+    spheres: Vec<Sphere>,
     triangle_geometry: u32,
     sphere_geometry: u32,
 }
@@ -59,13 +59,24 @@ unsafe impl Sync for EmbreeScene {}
 
 impl EmbreeScene {
     pub fn build(geometry: &Geometry) -> Result<Self, AccelError> {
+        Self::build_with_config(geometry, "")
+    }
+
+    /// Builds with an Embree device configuration string (e.g. `"threads=1,verbose=1"`).
+    pub fn build_with_config(geometry: &Geometry, config: &str) -> Result<Self, AccelError> {
         let errors = Box::<ErrorLog>::default();
-        // SAFETY: a null config string is allowed and means defaults.
-        let device = unsafe { sys::rtcNewDevice(std::ptr::null()) };
+        let config = std::ffi::CString::new(config).map_err(|_| AccelError::Embree {
+            code: 0,
+            message: "device configuration contains NUL".into(),
+        })?;
+        // SAFETY: `config` is a valid NUL-terminated string for the duration of the call.
+        let device = unsafe { sys::rtcNewDevice(config.as_ptr()) };
         if device.is_null() {
+            // SAFETY: a null device asks for the error of the failed device creation.
+            let code = unsafe { sys::rtcGetDeviceError(std::ptr::null_mut()) };
             return Err(AccelError::Embree {
-                code: 0,
-                message: "rtcNewDevice failed".into(),
+                code: code as u32,
+                message: format!("rtcNewDevice failed: {code:?}"),
             });
         }
         // SAFETY: `errors` is boxed, so its address is stable for the device's lifetime (the
@@ -97,7 +108,7 @@ impl EmbreeScene {
             triangles: (0..geometry.triangles.len() as u32)
                 .map(|i| geometry.triangle_vertices(i))
                 .collect(),
-            sphere_centers: geometry.spheres.iter().map(|s| s.center).collect(),
+            spheres: geometry.spheres.clone(),
             triangle_geometry: sys::RTC_INVALID_GEOMETRY_ID,
             sphere_geometry: sys::RTC_INVALID_GEOMETRY_ID,
         };
@@ -225,7 +236,17 @@ impl EmbreeScene {
                 ng,
             })
         } else if geom_id == self.sphere_geometry {
-            let ng = (ray.at(t) - self.sphere_centers[prim_id as usize]).normalize();
+            // Embree's single-ray and packet sphere tests round differently; the exact root
+            // nearest Embree's makes both (and the Rust BVH) report the same bits.
+            let sphere = &self.spheres[prim_id as usize];
+            let t = sphere_roots(sphere, ray).map_or(t, |[t0, t1]| {
+                if (t0 - t).abs() <= (t1 - t).abs() {
+                    t0
+                } else {
+                    t1
+                }
+            });
+            let ng = (ray.at(t) - sphere.center).normalize();
             Some(Hit {
                 t,
                 primitive: Primitive::Sphere(prim_id),

@@ -150,6 +150,26 @@ impl Geometry {
     }
 }
 
+/// Both ray parameters where `ray` meets the sphere, nearest first. Solved in f64 relative
+/// to the centre: in f32 the discriminant cancels badly for distant or grazing rays. Both
+/// backends report sphere hits through this one function, so they agree to the bit.
+pub(crate) fn sphere_roots(s: &Sphere, ray: &Ray) -> Option<[f32; 2]> {
+    let o = (ray.origin - s.center).as_dvec3();
+    let d = ray.dir.as_dvec3();
+    let a = d.length_squared();
+    let half_b = o.dot(d);
+    let c = o.length_squared() - (s.radius as f64) * (s.radius as f64);
+    let disc = half_b * half_b - a * c;
+    if disc < 0.0 || a == 0.0 {
+        return None;
+    }
+    // The numerically stable pair of roots (Numerical Recipes 5.6).
+    let q = -(half_b + half_b.signum() * disc.sqrt());
+    let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (q / a, c / q) };
+    let (t0, t1) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+    Some([t0 as f32, t1 as f32])
+}
+
 /// Packet width of the 8-ray queries.
 pub const PACKET: usize = 8;
 

@@ -6,6 +6,7 @@ use crate::render::RenderOptions;
 use crate::scene::{Camera, Scene};
 
 pub mod pt;
+pub mod vcm;
 
 /// The rendering techniques.
 #[derive(
@@ -92,6 +93,9 @@ pub trait Integrator: Send + Sync {
 pub fn create<'a>(ctx: RenderContext<'a>) -> Box<dyn Integrator + 'a> {
     match ctx.options.technique {
         Technique::Pt => Box::new(pt::PathTracer::new(ctx)),
-        other => todo!("{}", other.name()),
+        Technique::Lt | Technique::Bpt | Technique::Ppm | Technique::Bpm | Technique::Vcm => {
+            Box::new(vcm::VertexCm::new(ctx))
+        }
+        Technique::Upg | Technique::UpgCamera => todo!("{}", ctx.options.technique.name()),
     }
 }

@@ -1,0 +1,710 @@
+//! Vertex connection and merging (001), and the techniques that are special cases of it: light
+//! tracing (`lt`), bidirectional path tracing (`bpt`, VC only: 001 sec. 5.5, eta_VCM = 0),
+//! bidirectional photon mapping (`bpm`, VM only: 001 sec. 5.6) and progressive photon mapping
+//! (`ppm`, one merge at the first non-specular eye vertex).
+//!
+//! The structure follows SmallVCM's VertexCM: an iteration traces one light sub-path per pixel
+//! (n_light = n_VM = pixel count, 001 sec. 2.3), stores its non-specular vertices with the MIS
+//! quantities d_vcm, d_vc, d_vm (001 eqs. 31-36) and connects them to the camera; builds the
+//! hash grid over them; then traces one eye sub-path per pixel that at every non-specular vertex
+//! takes emission, a light sample, connections to its pixel's light sub-path and merges with
+//! nearby light vertices, each weighted by 001 eqs. 37-47. Every quantity is SmallVCM's "with
+//! the power already applied" form: `mis(x) = x^beta`.
+//!
+//! Russian roulette is left out of the pdfs the weights use: weights only need to sum to one
+//! over the techniques, and every technique evaluates the same pdfs.
+
+use super::{Integrator, IterationStats, RenderContext, Technique};
+use crate::accel::Ray;
+use crate::bsdf::{Bsdf, TransportMode};
+use crate::color::Rgb;
+use crate::film::add_sample;
+use crate::hashgrid::HashGrid;
+use crate::sampling::{Rng, Stream};
+use crate::scene::{Scene, SurfaceHit};
+use glam::Vec3;
+use rayon::prelude::*;
+use std::f32::consts::PI;
+
+/// Light paths traced by one parallel task. Fixed, so results do not depend on threads.
+const LIGHT_CHUNK: usize = 256;
+
+/// Which techniques run and are weighted against each other.
+#[derive(Clone, Copy, Debug)]
+struct Modes {
+    /// Vertex connection: light sampling, light-to-camera and sub-path connections.
+    vc: bool,
+    /// Vertex merging.
+    vm: bool,
+    /// Progressive photon mapping: merge only at the first non-specular eye vertex.
+    ppm: bool,
+    /// Light tracing alone: light vertices splatted to the camera with weight 1.
+    light_trace: bool,
+}
+
+impl Modes {
+    fn for_technique(technique: Technique, no_vc: bool, no_vm: bool) -> Self {
+        let (vc, vm, ppm, light_trace) = match technique {
+            Technique::Lt => (false, false, false, true),
+            Technique::Bpt => (true, false, false, false),
+            Technique::Ppm => (false, true, true, false),
+            Technique::Bpm => (false, true, false, false),
+            _ => (!no_vc, !no_vm, false, false),
+        };
+        Modes {
+            vc,
+            vm,
+            ppm,
+            light_trace,
+        }
+    }
+}
+
+/// A stored light sub-path vertex: everything a connection or a merge needs (68 bytes).
+#[derive(Clone, Copy, Debug)]
+pub struct LightVertex {
+    pub position: Vec3,
+    /// Geometric normal.
+    pub ng: Vec3,
+    /// Unit direction back towards the previous vertex of the light sub-path.
+    pub wo: Vec3,
+    pub throughput: Rgb,
+    pub material: u32,
+    /// Segments from the light to this vertex.
+    pub path_length: u32,
+    pub d_vcm: f32,
+    pub d_vc: f32,
+    pub d_vm: f32,
+}
+
+/// What one task of the light pass produces: vertices and where each path's end, camera
+/// splats, counters.
+#[derive(Default)]
+struct LightChunk {
+    vertices: Vec<LightVertex>,
+    ends: Vec<u32>,
+    splats: Vec<(usize, Rgb)>,
+    stats: IterationStats,
+}
+
+/// The state of a sub-path being traced (SmallVCM's SubPathState).
+#[derive(Clone, Copy, Debug)]
+struct SubPath {
+    ray: Ray,
+    throughput: Rgb,
+    path_length: u32,
+    /// Light sub-paths: started on a finite light (distance terms apply to the first segment).
+    finite_light: bool,
+    /// Eye sub-paths: every scattering so far was a delta lobe.
+    specular: bool,
+    d_vcm: f32,
+    d_vc: f32,
+    d_vm: f32,
+}
+
+/// Per-iteration constants of the weights.
+#[derive(Clone, Copy, Debug)]
+struct Weights {
+    beta: f32,
+    light_paths: f32,
+    radius: f32,
+    /// mis(eta_VCM) and mis(1 / eta_VCM) when both VC and VM run, else 0 (001 sec. 5.5-5.6).
+    vm_factor: f32,
+    vc_factor: f32,
+    /// 1 / (pi r^2 n_VM): the density estimate's normalisation.
+    vm_normalization: f32,
+}
+
+impl Weights {
+    #[inline]
+    fn mis(&self, x: f32) -> f32 {
+        crate::sampling::mis_power(x, self.beta)
+    }
+}
+
+pub struct VertexCm<'a> {
+    ctx: RenderContext<'a>,
+    modes: Modes,
+    base_radius: f32,
+    alpha: f32,
+}
+
+impl<'a> VertexCm<'a> {
+    pub fn new(ctx: RenderContext<'a>) -> Self {
+        let o = ctx.options;
+        let modes = Modes::for_technique(o.technique, o.no_vc, o.no_vm);
+        let base_radius = o.radius.unwrap_or_else(|| ctx.scene.default_radius());
+        let alpha = if modes.vm {
+            o.alpha.unwrap_or(0.75)
+        } else {
+            1.0
+        };
+        VertexCm {
+            ctx,
+            modes,
+            base_radius,
+            alpha,
+        }
+    }
+
+    /// The constants of iteration `iteration` (0-based): 000 eq. 2.85's radius
+    /// r_i = r_1 sqrt(i^(alpha - 1)) for i = iteration + 1.
+    fn weights(&self) -> impl Fn(u64) -> Weights + '_ {
+        move |iteration| {
+            let i = (iteration + 1) as f32;
+            let radius = (self.base_radius * i.powf(0.5 * (self.alpha - 1.0))).max(1e-7);
+            let light_paths = self.ctx.camera.pixel_count() as f32;
+            let eta_vcm = PI * radius * radius * light_paths;
+            let beta = self.ctx.options.beta;
+            let mis = |x: f32| crate::sampling::mis_power(x, beta);
+            Weights {
+                beta,
+                light_paths,
+                radius,
+                vm_factor: if self.modes.vm && self.modes.vc {
+                    mis(eta_vcm)
+                } else {
+                    0.0
+                },
+                vc_factor: if self.modes.vc && self.modes.vm {
+                    mis(1.0 / eta_vcm)
+                } else {
+                    0.0
+                },
+                vm_normalization: 1.0 / eta_vcm,
+            }
+        }
+    }
+
+    fn scene(&self) -> &Scene {
+        self.ctx.scene
+    }
+
+    /// Starts a light sub-path (SmallVCM's GenerateLightSample; 001 eqs. 31-33).
+    fn light_sample(&self, w: &Weights, rng: &mut Rng) -> Option<SubPath> {
+        let lights = &self.scene().lights;
+        let (index, pick) = lights.pick(rng.next_f32())?;
+        let light = lights.get(index);
+        let (u_pos, u_dir) = (rng.next_2d(), rng.next_2d());
+        let e = light.emit(u_pos, u_dir)?;
+        let emission_pdf_w = e.emission_pdf_w * pick;
+        let direct_pdf_a = e.direct_pdf_a * pick;
+        if emission_pdf_w.is_nan() || emission_pdf_w <= 0.0 {
+            return None;
+        }
+        let d_vc = if light.is_delta() {
+            0.0
+        } else {
+            let cos = if light.is_finite() {
+                e.cos_at_light
+            } else {
+                1.0
+            };
+            w.mis(cos / emission_pdf_w)
+        };
+        let origin = if light.is_finite() && !light.is_delta() {
+            Ray::spawn(e.position, e.normal, e.dir).origin
+        } else {
+            e.position
+        };
+        Some(SubPath {
+            ray: Ray::new(origin, e.dir),
+            throughput: e.energy / emission_pdf_w,
+            path_length: 1,
+            finite_light: light.is_finite(),
+            specular: false,
+            d_vcm: w.mis(direct_pdf_a / emission_pdf_w),
+            d_vc,
+            d_vm: d_vc * w.vc_factor,
+        })
+    }
+
+    /// Continues a sub-path by sampling the BSDF (SmallVCM's SampleScattering; 001 eqs. 34-36).
+    /// `None` ends the path.
+    fn scatter(
+        &self,
+        w: &Weights,
+        state: &mut SubPath,
+        hit: &SurfaceHit,
+        bsdf: &Bsdf,
+        rng: &mut Rng,
+    ) -> Option<()> {
+        let s = bsdf.sample([rng.next_f32(), rng.next_f32(), rng.next_f32()])?;
+        if state.path_length >= self.ctx.options.roulette {
+            let q = bsdf.continuation_probability();
+            if rng.next_f32() >= q {
+                return None;
+            }
+            state.throughput /= q;
+        }
+        let cos_out = bsdf.cos_theta(s.wi);
+        if s.delta {
+            // 001 sec. 5.3: delta pdfs cancel; only the cosine ratio survives.
+            state.d_vcm = 0.0;
+            state.d_vc *= w.mis(cos_out);
+            state.d_vm *= w.mis(cos_out);
+        } else {
+            state.specular = false;
+            let ratio = w.mis(cos_out / s.pdf_w);
+            state.d_vc = ratio * (state.d_vc * w.mis(s.rev_pdf_w) + state.d_vcm + w.vm_factor);
+            state.d_vm =
+                ratio * (state.d_vm * w.mis(s.rev_pdf_w) + state.d_vcm * w.vc_factor + 1.0);
+            state.d_vcm = w.mis(1.0 / s.pdf_w);
+        }
+        state.throughput *= s.f * (cos_out / s.pdf_w);
+        if state.throughput.is_black() {
+            return None;
+        }
+        state.ray = Ray::spawn(hit.position, hit.ng, s.wi);
+        state.path_length += 1;
+        Some(())
+    }
+
+    /// Distance and cosine updates at a newly found vertex (SmallVCM; 001 eqs. 34-36 use the
+    /// reverse geometry factor).
+    fn arrive(&self, w: &Weights, state: &mut SubPath, hit: &SurfaceHit, light_side: bool) {
+        let distance = hit.hit.t * state.ray.dir.length();
+        if !light_side || state.path_length > 1 || state.finite_light {
+            state.d_vcm *= w.mis(distance * distance);
+        }
+        let cos = hit.ng.dot(-state.ray.dir.normalize()).abs();
+        let inv = 1.0 / w.mis(cos);
+        state.d_vcm *= inv;
+        state.d_vc *= inv;
+        state.d_vm *= inv;
+    }
+
+    /// Traces the light sub-path `index`; stores its vertices and returns its camera splats.
+    fn trace_light_path(
+        &self,
+        w: &Weights,
+        iteration: u64,
+        index: usize,
+        vertices: &mut Vec<LightVertex>,
+        splats: &mut Vec<(usize, Rgb)>,
+        stats: &mut IterationStats,
+    ) {
+        let mut rng = Rng::for_sample(
+            self.ctx.options.seed,
+            iteration,
+            index as u64,
+            Stream::Light,
+        );
+        let Some(mut state) = self.light_sample(w, &mut rng) else {
+            return;
+        };
+        let max_length = self.ctx.max_path_length();
+        loop {
+            stats.rays += 1;
+            let Some(hit) = self.scene().intersect(&state.ray) else {
+                break;
+            };
+            let dir = state.ray.dir.normalize();
+            self.arrive(w, &mut state, &hit, true);
+            let material = &self.scene().material(hit.material).kind;
+            let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Importance) else {
+                break;
+            };
+            if !bsdf.is_delta() {
+                if self.modes.vc || self.modes.vm {
+                    vertices.push(LightVertex {
+                        position: hit.position,
+                        ng: hit.ng,
+                        wo: -dir,
+                        throughput: state.throughput,
+                        material: hit.material,
+                        path_length: state.path_length,
+                        d_vcm: state.d_vcm,
+                        d_vc: state.d_vc,
+                        d_vm: state.d_vm,
+                    });
+                }
+                if self.modes.vc || self.modes.light_trace {
+                    self.connect_to_camera(w, &state, &hit, &bsdf, splats, stats);
+                }
+            }
+            if state.path_length.saturating_add(2) > max_length {
+                break;
+            }
+            if self.scatter(w, &mut state, &hit, &bsdf, &mut rng).is_none() {
+                break;
+            }
+        }
+    }
+
+    /// Connects a light vertex to the camera and splats it (t = 1; 001 eqs. 46-47).
+    fn connect_to_camera(
+        &self,
+        w: &Weights,
+        state: &SubPath,
+        hit: &SurfaceHit,
+        bsdf: &Bsdf,
+        splats: &mut Vec<(usize, Rgb)>,
+        stats: &mut IterationStats,
+    ) {
+        let camera = &self.ctx.camera;
+        let Some((x, y)) = camera.raster(hit.position) else {
+            return;
+        };
+        let to_camera = camera.position - hit.position;
+        let dist2 = to_camera.length_squared();
+        let dir = to_camera / dist2.sqrt();
+        let eval = bsdf.eval(dir);
+        if eval.f.is_black() {
+            return;
+        }
+        let cos_surface = bsdf.cos_theta(dir);
+        // Pixel-area density of the image point, turned into an area density at the vertex.
+        let camera_pdf_a = camera.pdf_w(-dir) * cos_surface / dist2;
+        let weight = if self.modes.light_trace {
+            1.0
+        } else {
+            let w_light = w.mis(camera_pdf_a / w.light_paths)
+                * (w.vm_factor + state.d_vcm + state.d_vc * w.mis(eval.rev_pdf_w));
+            1.0 / (w_light + 1.0)
+        };
+        let contribution = state.throughput * eval.f * (weight * camera_pdf_a / w.light_paths);
+        stats.rays += 1;
+        if !self
+            .scene()
+            .occluded(&Ray::spawn_to(hit.position, hit.ng, camera.position))
+        {
+            splats.push((camera.pixel_index(x, y), contribution));
+        }
+    }
+
+    /// Emission reached by an eye sub-path: an area light at `hit`, or the sky when `hit` is
+    /// `None` (s = 0; 001 eqs. 42-43).
+    fn emission(&self, w: &Weights, state: &SubPath, hit: Option<&SurfaceHit>) -> Rgb {
+        let lights = &self.scene().lights;
+        let dir = state.ray.dir.normalize();
+        let (received, index) = match hit {
+            Some(h) => {
+                let Some(index) = h.light else {
+                    return Rgb::BLACK;
+                };
+                match lights.get(index).radiance(dir, h.ng) {
+                    Some(r) => (r, index),
+                    None => return Rgb::BLACK,
+                }
+            }
+            None => match (lights.background(dir), lights.sky()) {
+                (Some(r), Some(index)) => (r, index),
+                _ => return Rgb::BLACK,
+            },
+        };
+        if state.path_length == 1 {
+            return received.radiance;
+        }
+        // Without connections only purely specular eye paths may take emission: every other
+        // path is found by merging (SmallVCM's ppm and bpm).
+        if !self.modes.vc {
+            return if state.specular {
+                received.radiance
+            } else {
+                Rgb::BLACK
+            };
+        }
+        let pick = lights.pick_pdf(index);
+        let w_camera = w.mis(received.direct_pdf_a * pick) * state.d_vcm
+            + w.mis(received.emission_pdf_w * pick) * state.d_vc;
+        received.radiance / (1.0 + w_camera)
+    }
+
+    /// Next-event estimation (s = 1; 001 eqs. 44-45).
+    fn light_sampling(
+        &self,
+        w: &Weights,
+        state: &SubPath,
+        hit: &SurfaceHit,
+        bsdf: &Bsdf,
+        rng: &mut Rng,
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let lights = &self.scene().lights;
+        let u_pick = rng.next_f32();
+        let u = rng.next_2d();
+        let Some((index, pick)) = lights.pick(u_pick) else {
+            return Rgb::BLACK;
+        };
+        let light = lights.get(index);
+        let Some(il) = light.illuminate(hit.position, u) else {
+            return Rgb::BLACK;
+        };
+        let eval = bsdf.eval(il.dir_to_light);
+        if eval.f.is_black() {
+            return Rgb::BLACK;
+        }
+        let cos_to_light = bsdf.cos_theta(il.dir_to_light);
+        let w_light = if light.is_delta() {
+            0.0
+        } else {
+            w.mis(eval.pdf_w / (pick * il.direct_pdf_w))
+        };
+        let w_camera = w
+            .mis(il.emission_pdf_w * cos_to_light / (il.direct_pdf_w * il.cos_at_light))
+            * (w.vm_factor + state.d_vcm + state.d_vc * w.mis(eval.rev_pdf_w));
+        let weight = 1.0 / (w_light + 1.0 + w_camera);
+        stats.rays += 1;
+        let shadow = if !il.distance.is_finite() {
+            Ray::spawn(hit.position, hit.ng, il.dir_to_light)
+        } else if light.is_delta() {
+            Ray::spawn_to(hit.position, hit.ng, il.position)
+        } else {
+            Ray::spawn_between(hit.position, hit.ng, il.position, il.normal)
+        };
+        if self.scene().occluded(&shadow) {
+            return Rgb::BLACK;
+        }
+        il.radiance * eval.f * (weight * cos_to_light / (pick * il.direct_pdf_w))
+    }
+
+    /// Connects an eye vertex to a light vertex (s, t > 1; 001 eqs. 40-41).
+    fn connect(
+        &self,
+        w: &Weights,
+        state: &SubPath,
+        hit: &SurfaceHit,
+        bsdf: &Bsdf,
+        lv: &LightVertex,
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let to_light = lv.position - hit.position;
+        let dist2 = to_light.length_squared();
+        if dist2 <= 0.0 {
+            return Rgb::BLACK;
+        }
+        let distance = dist2.sqrt();
+        let dir = to_light / distance;
+        let eye_eval = bsdf.eval(dir);
+        if eye_eval.f.is_black() {
+            return Rgb::BLACK;
+        }
+        let light_material = &self.scene().material(lv.material).kind;
+        let Some(light_bsdf) = Bsdf::new(light_material, lv.ng, lv.wo, TransportMode::Importance)
+        else {
+            return Rgb::BLACK;
+        };
+        let light_eval = light_bsdf.eval(-dir);
+        if light_eval.f.is_black() {
+            return Rgb::BLACK;
+        }
+        let cos_eye = bsdf.cos_theta(dir);
+        let cos_light = light_bsdf.cos_theta(dir);
+        let geometry = cos_eye * cos_light / dist2;
+        // Solid-angle pdfs turned into area pdfs at the other end.
+        let eye_pdf_a = eye_eval.pdf_w * cos_light / dist2;
+        let light_pdf_a = light_eval.pdf_w * cos_eye / dist2;
+        let w_light =
+            w.mis(eye_pdf_a) * (w.vm_factor + lv.d_vcm + lv.d_vc * w.mis(light_eval.rev_pdf_w));
+        let w_camera = w.mis(light_pdf_a)
+            * (w.vm_factor + state.d_vcm + state.d_vc * w.mis(eye_eval.rev_pdf_w));
+        let weight = 1.0 / (w_light + 1.0 + w_camera);
+        stats.rays += 1;
+        if self.scene().occluded(&Ray::spawn_between(
+            hit.position,
+            hit.ng,
+            lv.position,
+            lv.ng,
+        )) {
+            return Rgb::BLACK;
+        }
+        eye_eval.f * light_eval.f * lv.throughput * (weight * geometry)
+    }
+
+    /// Merges an eye vertex with the light vertices around it (001 eqs. 38-39), not yet
+    /// normalised by 1 / (pi r^2 n_VM).
+    fn merge(
+        &self,
+        w: &Weights,
+        state: &SubPath,
+        bsdf: &Bsdf,
+        hit: &SurfaceHit,
+        grid: &HashGrid,
+        vertices: &[LightVertex],
+    ) -> Rgb {
+        let max_length = self.ctx.max_path_length();
+        let mut sum = Rgb::BLACK;
+        grid.query(hit.position, |i, _| {
+            let lv = &vertices[i];
+            if lv.path_length.saturating_add(state.path_length) > max_length {
+                return;
+            }
+            let eval = bsdf.eval(lv.wo);
+            if eval.f.is_black() {
+                return;
+            }
+            let w_light = lv.d_vcm * w.vc_factor + lv.d_vm * w.mis(eval.pdf_w);
+            let w_camera = state.d_vcm * w.vc_factor + state.d_vm * w.mis(eval.rev_pdf_w);
+            // PPM takes its one merge per eye path unweighted: no other technique competes.
+            let weight = if self.modes.ppm {
+                1.0
+            } else {
+                1.0 / (w_light + 1.0 + w_camera)
+            };
+            sum += eval.f * lv.throughput * weight;
+        });
+        sum
+    }
+
+    /// Traces the eye sub-path of one pixel and returns its estimate.
+    #[allow(clippy::too_many_arguments)]
+    fn trace_eye_path(
+        &self,
+        w: &Weights,
+        iteration: u64,
+        pixel: usize,
+        light_path: &[LightVertex],
+        grid: Option<&HashGrid>,
+        vertices: &[LightVertex],
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let camera = &self.ctx.camera;
+        let mut rng = Rng::for_sample(self.ctx.options.seed, iteration, pixel as u64, Stream::Eye);
+        let width = camera.width as usize;
+        let [jx, jy] = rng.next_2d();
+        let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
+        let camera_pdf_w = camera.pdf_w(ray.dir);
+        // 001 eq. (31)-(33) for the eye: p_0^connect = p_0^trace, d_vc = d_vm = 0.
+        let mut state = SubPath {
+            ray,
+            throughput: Rgb::WHITE,
+            path_length: 1,
+            finite_light: true,
+            specular: true,
+            d_vcm: w.mis(w.light_paths / camera_pdf_w),
+            d_vc: 0.0,
+            d_vm: 0.0,
+        };
+        let max_length = self.ctx.max_path_length();
+        let mut color = Rgb::BLACK;
+        loop {
+            stats.rays += 1;
+            let Some(hit) = self.scene().intersect(&state.ray) else {
+                color += state.throughput * self.emission(w, &state, None);
+                break;
+            };
+            let dir = state.ray.dir.normalize();
+            self.arrive(w, &mut state, &hit, false);
+            color += state.throughput * self.emission(w, &state, Some(&hit));
+            // Light tracing renders everything else from the light side.
+            if self.modes.light_trace || state.path_length >= max_length {
+                break;
+            }
+            let material = &self.scene().material(hit.material).kind;
+            let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Radiance) else {
+                break;
+            };
+            if !bsdf.is_delta() {
+                if self.modes.vc {
+                    color += state.throughput
+                        * self.light_sampling(w, &state, &hit, &bsdf, &mut rng, stats);
+                    for lv in light_path {
+                        if lv.path_length + state.path_length + 1 > max_length {
+                            break;
+                        }
+                        color += state.throughput * self.connect(w, &state, &hit, &bsdf, lv, stats);
+                    }
+                }
+                if let Some(grid) = grid {
+                    let merged = self.merge(w, &state, &bsdf, &hit, grid, vertices);
+                    color += state.throughput * merged * w.vm_normalization;
+                    if self.modes.ppm {
+                        break;
+                    }
+                }
+            }
+            if self.scatter(w, &mut state, &hit, &bsdf, &mut rng).is_none() {
+                break;
+            }
+        }
+        color
+    }
+}
+
+impl Integrator for VertexCm<'_> {
+    fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
+        let w = self.weights()(iteration);
+        let paths = frame.len();
+        // Light pass: fixed chunks of paths, concatenated in order.
+        let chunks: Vec<LightChunk> = (0..paths)
+            .into_par_iter()
+            .step_by(LIGHT_CHUNK)
+            .map(|start| {
+                let mut chunk = LightChunk::default();
+                for index in start..(start + LIGHT_CHUNK).min(paths) {
+                    self.trace_light_path(
+                        &w,
+                        iteration,
+                        index,
+                        &mut chunk.vertices,
+                        &mut chunk.splats,
+                        &mut chunk.stats,
+                    );
+                    chunk.ends.push(chunk.vertices.len() as u32);
+                }
+                chunk
+            })
+            .collect();
+        let mut vertices = Vec::new();
+        let mut path_ends = Vec::with_capacity(paths + 1);
+        path_ends.push(0usize);
+        let mut stats = IterationStats::default();
+        for LightChunk {
+            vertices: chunk_vertices,
+            ends,
+            splats,
+            stats: chunk_stats,
+        } in chunks
+        {
+            let base = vertices.len();
+            path_ends.extend(ends.iter().map(|&e| base + e as usize));
+            vertices.extend(chunk_vertices);
+            for (pixel, value) in splats {
+                add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
+            }
+            stats.rays += chunk_stats.rays;
+            stats.dropped_samples += chunk_stats.dropped_samples;
+        }
+        let grid = self.modes.vm.then(|| {
+            let positions: Vec<Vec3> = vertices.iter().map(|v| v.position).collect();
+            HashGrid::build(&positions, w.radius)
+        });
+        // Eye pass: one sub-path per pixel, each connecting to its own light sub-path.
+        let eye_stats = frame
+            .par_iter_mut()
+            .enumerate()
+            .map(|(pixel, value)| {
+                let mut stats = IterationStats::default();
+                let light_path = &vertices[path_ends[pixel]..path_ends[pixel + 1]];
+                let color = self.trace_eye_path(
+                    &w,
+                    iteration,
+                    pixel,
+                    light_path,
+                    grid.as_ref(),
+                    &vertices,
+                    &mut stats,
+                );
+                add_sample(value, color, &mut stats.dropped_samples);
+                stats
+            })
+            .reduce(IterationStats::default, |a, b| IterationStats {
+                dropped_samples: a.dropped_samples + b.dropped_samples,
+                rays: a.rays + b.rays,
+            });
+        stats.rays += eye_stats.rays;
+        stats.dropped_samples += eye_stats.dropped_samples;
+        stats
+    }
+
+    fn statistics(&self) -> Vec<(String, String)> {
+        if !self.modes.vm {
+            return Vec::new();
+        }
+        vec![
+            ("base_radius".into(), self.base_radius.to_string()),
+            ("alpha".into(), self.alpha.to_string()),
+        ]
+    }
+}
