@@ -97,7 +97,7 @@ fn merge_is_the_iteration_weighted_mean() {
     assert_eq!(m.render_seconds, 0.75 + 1.25);
     assert_eq!(m.dropped_samples, 1 + 2);
     assert_eq!(m.options.seed, 1);
-    assert_eq!(m.statistic("merged_seeds"), Some("1 2"));
+    assert_eq!(m.statistic(tools::MERGED_SEEDS), Some("1 2"));
     assert_eq!(m.statistic("photons"), Some("96"));
     assert!(m.errors.is_empty());
 

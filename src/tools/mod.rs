@@ -20,5 +20,5 @@ mod plot;
 pub use compare::{average, diff, errors};
 pub use convert::{bake, strip};
 pub use inspect::{measurements, metadata, time, traces};
-pub use merge::merge;
+pub use merge::{merge, MERGED_SEEDS};
 pub use plot::plot;
