@@ -1,8 +1,14 @@
-//! EXR files. A render is the mean radiance as 32-bit float R, G, B (what every viewer shows),
-//! plus the exact f64 sums as pairs of u32 channels (so `continue` and `merge` are bit-exact),
-//! plus the [`Metadata`] as a text attribute. Every write goes through a temporary file in the
-//! same directory, flushed and renamed over the target.
+//! EXR files. A render is one layer holding
+//! - the mean radiance `sum / iterations` as 32-bit float `R`, `G`, `B`: what every viewer shows;
+//! - the exact f64 sums as pairs of 32-bit unsigned channels `vmerge.sum.R.hi` and
+//!   `vmerge.sum.R.lo` (the high and low halves of the f64's bits; likewise G, B), so that
+//!   `continue` and `merge` are bit-exact. Viewers show such channels as an extra layer
+//!   `vmerge.sum.R` or not at all; they never replace the RGB image;
+//! - the [`Metadata`] as text attributes `vmerge.*` of the header.
+//!
+//! Every write goes through [`atomic_write`](super::atomic_write).
 
+use super::metadata::attribute;
 use super::{Film, Metadata};
 use crate::color::Rgb;
 use exr::prelude::{
@@ -12,21 +18,26 @@ use exr::prelude::{
 use std::path::{Path, PathBuf};
 use thiserror::Error;
 
-const METADATA_ATTRIBUTE: &str = "vmerge";
 const SUM_CHANNELS: [[&str; 2]; 3] = [
     ["vmerge.sum.R.hi", "vmerge.sum.R.lo"],
     ["vmerge.sum.G.hi", "vmerge.sum.G.lo"],
     ["vmerge.sum.B.hi", "vmerge.sum.B.lo"],
 ];
 
+/// What can go wrong with an image file; every message starts with the file's name.
 #[derive(Debug, Error)]
 pub enum FilmError {
+    /// Missing, unreadable, truncated, or not an EXR.
     #[error("{file}: cannot read: {message}")]
     Read { file: PathBuf, message: String },
+    /// The file (or its temporary sibling) could not be written; the target is untouched.
     #[error("{file}: cannot write: {message}")]
     Write { file: PathBuf, message: String },
+    /// An EXR without vmerge's sums or metadata where a render is needed.
     #[error("{file}: not a vmerge render ({message})")]
     NotARender { file: PathBuf, message: String },
+    /// A readable file that does not fit: no colour channels, another resolution, renders that
+    /// cannot be merged, ...
     #[error("{file}: {message}")]
     Invalid { file: PathBuf, message: String },
 }
@@ -66,20 +77,32 @@ pub fn write_render(path: &Path, film: &Film, metadata: &Metadata) -> Result<(),
         channels.push(AnyChannel::new(SUM_CHANNELS[c][0], FlatSamples::U32(hi)));
         channels.push(AnyChannel::new(SUM_CHANNELS[c][1], FlatSamples::U32(lo)));
     }
-    let toml = metadata.to_toml().map_err(|message| FilmError::Write {
-        file: path.into(),
-        message,
-    })?;
     let mut attributes = LayerAttributes::default();
-    attributes.other.insert(
-        Text::from(METADATA_ATTRIBUTE),
-        AttributeValue::Text(encode_text(&toml)),
-    );
+    let fields = metadata.to_attributes().map_err(|e| FilmError::Write {
+        file: path.into(),
+        message: e.to_string(),
+    })?;
+    for (name, value) in fields {
+        attributes
+            .other
+            .insert(Text::from(name), AttributeValue::Text(encode_text(&value)));
+    }
     write_channels(path, film.width, film.height, channels, attributes)
 }
 
-/// Writes a plain RGB EXR (no vmerge channels or attributes) atomically.
+/// Writes a plain RGB EXR (32-bit float R, G, B; no vmerge channels or attributes) atomically.
 pub fn write_image(path: &Path, image: &Image) -> Result<(), FilmError> {
+    if image.pixels.len() != image.width as usize * image.height as usize {
+        return Err(FilmError::Write {
+            file: path.into(),
+            message: format!(
+                "{} pixels do not make a {}x{} image",
+                image.pixels.len(),
+                image.width,
+                image.height
+            ),
+        });
+    }
     let channels = ["R", "G", "B"]
         .into_iter()
         .enumerate()
@@ -145,6 +168,8 @@ fn read_any(path: &Path) -> Result<AnyImage, FilmError> {
         })
 }
 
+/// The channel `name` if it has one sample per pixel; subsampled channels (chroma in
+/// luminance-chroma files) are not colour vmerge can use.
 fn channel<'a>(image: &'a AnyImage, name: &str) -> Option<&'a FlatSamples> {
     image
         .layer_data
@@ -153,32 +178,72 @@ fn channel<'a>(image: &'a AnyImage, name: &str) -> Option<&'a FlatSamples> {
         .iter()
         .find(|c| c.name.to_string() == name)
         .map(|c| &c.sample_data)
+        .filter(|samples| samples.len() == image.layer_data.size.area())
 }
 
 fn to_f32(samples: &FlatSamples) -> Vec<f32> {
     samples.values_as_f32().collect()
 }
 
+/// The channels to show as RGB: `R`, `G`, `B`; else `Y` (luminance) as grey; else the `R`, `G`,
+/// `B` (or `Y`) of the one layer that has them (`Combined.R`, ...), as other programs write.
+fn colour_channels<'a>(
+    image: &'a AnyImage,
+    path: &Path,
+) -> Result<[&'a FlatSamples; 3], FilmError> {
+    let names: Vec<String> = image
+        .layer_data
+        .channel_data
+        .list
+        .iter()
+        .map(|c| c.name.to_string())
+        .collect();
+    let find = |prefix: &str| {
+        let get = |c: &str| channel(image, &format!("{prefix}{c}"));
+        match (get("R"), get("G"), get("B"), get("Y")) {
+            (Some(r), Some(g), Some(b), _) => Some([r, g, b]),
+            (_, _, _, Some(y)) => Some([y, y, y]),
+            _ => None,
+        }
+    };
+    if let Some(found) = find("") {
+        return Ok(found);
+    }
+    let mut layers: Vec<(&str, [&FlatSamples; 3])> = names
+        .iter()
+        .filter_map(|n| n.rfind('.').map(|i| &n[..=i]))
+        .filter_map(|p| find(p).map(|c| (p, c)))
+        .collect();
+    layers.sort_unstable_by_key(|(p, _)| *p);
+    layers.dedup_by_key(|(p, _)| *p);
+    match layers[..] {
+        [(_, found)] => Ok(found),
+        [] => Err(FilmError::Invalid {
+            file: path.into(),
+            message: format!(
+                "has no R, G, B or Y channels (it has: {})",
+                names.join(", ")
+            ),
+        }),
+        _ => Err(FilmError::Invalid {
+            file: path.into(),
+            message: format!(
+                "has several colour layers ({}) and no plain R, G, B to choose",
+                layers
+                    .iter()
+                    .map(|(p, _)| p.trim_end_matches('.'))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        }),
+    }
+}
+
 /// Reads any RGB (or luminance-only) EXR as a plain image.
 pub fn read_image(path: &Path) -> Result<Image, FilmError> {
     let image = read_any(path)?;
     let size = image.layer_data.size;
-    let rgb: Vec<Vec<f32>> = match (
-        channel(&image, "R"),
-        channel(&image, "G"),
-        channel(&image, "B"),
-    ) {
-        (Some(r), Some(g), Some(b)) => vec![to_f32(r), to_f32(g), to_f32(b)],
-        _ => match channel(&image, "Y") {
-            Some(y) => vec![to_f32(y); 3],
-            None => {
-                return Err(FilmError::Invalid {
-                    file: path.into(),
-                    message: "has no R, G, B or Y channels".into(),
-                })
-            }
-        },
-    };
+    let rgb = colour_channels(&image, path)?.map(to_f32);
     let pixels = (0..size.area())
         .map(|i| Rgb::new(rgb[0][i], rgb[1][i], rgb[2][i]))
         .collect();
@@ -196,21 +261,20 @@ pub fn read_render(path: &Path) -> Result<(Film, Metadata), FilmError> {
         file: path.into(),
         message: message.into(),
     };
-    let text = match image
-        .layer_data
-        .attributes
-        .other
-        .get(&Text::from(METADATA_ATTRIBUTE))
+    let attributes = &image.layer_data.attributes.other;
+    if !attributes
+        .keys()
+        .any(|name| name.to_string().starts_with(attribute::PREFIX))
     {
-        Some(AttributeValue::Text(t)) => decode_text(t),
-        _ => {
-            return Err(not_render(
-                "no vmerge metadata; it was not written by vmerge render",
-            ))
-        }
-    };
-    let metadata =
-        Metadata::from_toml(&text).map_err(|e| not_render(&format!("unreadable metadata: {e}")))?;
+        return Err(not_render(
+            "no vmerge metadata; it was not written by vmerge render, or was baked",
+        ));
+    }
+    let metadata = Metadata::from_attributes(|name| match attributes.get(&Text::from(name)) {
+        Some(AttributeValue::Text(t)) => Some(decode_text(t)),
+        _ => None,
+    })
+    .map_err(|e| not_render(&format!("unreadable metadata: {e}")))?;
     let size = image.layer_data.size;
     let mut sums = Vec::with_capacity(3);
     for [hi, lo] in SUM_CHANNELS {
@@ -240,19 +304,20 @@ pub fn read_render(path: &Path) -> Result<(Film, Metadata), FilmError> {
     Ok((film, metadata))
 }
 
-/// EXR text is Latin-1; anything else (a non-ASCII path) is escaped as `\u{...}`.
+/// EXR text is Latin-1; anything else (a non-ASCII path) is escaped as `\u{...}`, and so is
+/// the backslash itself, so that [`decode_text`] can tell the two apart.
 fn encode_text(s: &str) -> Text {
-    let escaped: String = s
-        .chars()
-        .map(|c| {
-            if c.is_ascii() && c != '\\' {
-                c.to_string()
-            } else {
-                format!("\\u{{{:x}}}", c as u32)
-            }
-        })
-        .collect();
-    Text::from_bytes_unchecked(escaped.bytes().collect())
+    use std::fmt::Write;
+    let mut escaped = String::with_capacity(s.len());
+    for c in s.chars() {
+        if c.is_ascii() && c != '\\' {
+            escaped.push(c);
+        } else {
+            // Writing to a String cannot fail.
+            let _ = write!(escaped, "\\u{{{:x}}}", c as u32);
+        }
+    }
+    Text::from_bytes_unchecked(escaped.into_bytes().into())
 }
 
 fn decode_text(t: &Text) -> String {

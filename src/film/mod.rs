@@ -2,16 +2,17 @@
 //! and tone-mapped PNG previews.
 
 use crate::color::Rgb;
-use std::fs::File;
-use std::io::{BufWriter, Write};
-use std::path::Path;
 
+mod atomic;
 pub mod exr;
-mod metadata;
+pub mod metadata;
 pub mod png;
+mod reference;
 
+pub use atomic::atomic_write;
 pub use exr::{FilmError, Image};
-pub use metadata::{ErrorSample, Metadata, TraceWindow};
+pub use metadata::{ErrorSample, Metadata, MetadataError, TraceWindow};
+pub use reference::{errors_in, ErrorTracker};
 
 /// Sum of all iterations' per-pixel estimates, in f64 so that long renders do not lose
 /// precision; the image is `sum / iterations`.
@@ -46,6 +47,18 @@ impl Film {
             s[2] += c.b as f64;
         }
         self.iterations += 1;
+    }
+
+    /// Adds the iterations of another film of the same resolution: the sums add up, so the
+    /// mean becomes the iteration-weighted mean of the two.
+    pub fn accumulate(&mut self, other: &Film) {
+        debug_assert_eq!((self.width, self.height), (other.width, other.height));
+        for (s, o) in self.sum.iter_mut().zip(&other.sum) {
+            for c in 0..3 {
+                s[c] += o[c];
+            }
+        }
+        self.iterations += other.iterations;
     }
 
     /// The mean radiance of each pixel.
@@ -93,106 +106,5 @@ pub fn add_sample(pixel: &mut Rgb, value: Rgb, dropped: &mut u64) {
         *pixel += value;
     } else {
         *dropped += 1;
-    }
-}
-
-/// Writes a file atomically: into a temporary file in the same directory, flushed and synced,
-/// then renamed over `path`. A crash or a full disk leaves either the old file or the new one,
-/// never a half-written one.
-pub fn atomic_write(
-    path: &Path,
-    write: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
-) -> std::io::Result<()> {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let temporary = dir.join(format!(".{name}.tmp-{}", std::process::id()));
-    let result = (|| {
-        let mut writer = BufWriter::new(File::create(&temporary)?);
-        write(&mut writer)?;
-        writer.flush()?;
-        writer.get_ref().sync_all()?;
-        drop(writer);
-        std::fs::rename(&temporary, path)?;
-        // The rename itself is durable only once the directory is synced.
-        File::open(dir)?.sync_all()
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&temporary);
-    }
-    result
-}
-
-/// Mean absolute and root-mean-square error of `a` against `b` over the pixel rectangle
-/// `[x0, x1) x [y0, y1)` of images `width` wide, over all three channels (000 sec. 3.4).
-pub fn errors_in(a: &[Rgb], b: &[Rgb], width: u32, rect: (u32, u32, u32, u32)) -> (f64, f64) {
-    let (x0, y0, x1, y1) = rect;
-    let (mut abs, mut sq, mut n) = (0.0f64, 0.0f64, 0usize);
-    for y in y0..y1 {
-        let row = (y * width) as usize;
-        for i in row + x0 as usize..row + x1 as usize {
-            for (p, q) in a[i].to_array().into_iter().zip(b[i].to_array()) {
-                let d = (p - q) as f64;
-                abs += d.abs();
-                sq += d * d;
-                n += 1;
-            }
-        }
-    }
-    let n = n.max(1) as f64;
-    (abs / n, (sq / n).sqrt())
-}
-
-/// Errors of a render's mean image against a reference, for the whole image and for each trace
-/// window: what `--reference` records in the metadata.
-pub struct ErrorTracker {
-    reference: Image,
-    traces: Vec<TraceWindow>,
-}
-
-impl ErrorTracker {
-    /// Refuses a reference whose resolution differs from the render's.
-    pub fn new(
-        reference: Image,
-        path: &Path,
-        width: u32,
-        height: u32,
-        traces: Vec<TraceWindow>,
-    ) -> Result<Self, FilmError> {
-        if (reference.width, reference.height) != (width, height) {
-            return Err(FilmError::Invalid {
-                file: path.into(),
-                message: format!(
-                    "the reference is {}x{}, the render {width}x{height}",
-                    reference.width, reference.height
-                ),
-            });
-        }
-        Ok(ErrorTracker { reference, traces })
-    }
-
-    pub fn measure(&self, mean: &[Rgb], seconds: f64, iterations: u64) -> ErrorSample {
-        let (w, h) = (self.reference.width, self.reference.height);
-        let (mae, rmse) = errors_in(mean, &self.reference.pixels, w, (0, 0, w, h));
-        let traces = self
-            .traces
-            .iter()
-            .map(|t| {
-                let (a, r) = errors_in(mean, &self.reference.pixels, w, t.rect(w, h));
-                [a, r]
-            })
-            .collect();
-        ErrorSample {
-            seconds,
-            iterations,
-            mae,
-            rmse,
-            traces,
-        }
     }
 }

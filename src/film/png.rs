@@ -1,5 +1,6 @@
-//! Tone-mapped PNG previews: exposure 1, Reinhard's x / (1 + x) on each channel scaled so that
-//! radiance 1 (the calibrated scenes' mean) maps to mid-grey-ish 0.5 before sRGB encoding.
+//! Tone-mapped PNG previews: exposure 1, then Reinhard's x / (1 + x) on each channel, so that
+//! radiance 1 (the shipped scenes' calibrated mean) maps to 0.5 and nothing clips, then the sRGB
+//! transfer curve and 8 bits.
 
 use super::{atomic_write, FilmError};
 use crate::color::Rgb;
@@ -21,8 +22,9 @@ pub fn tone_map(pixels: &[Rgb]) -> Vec<u8> {
         .iter()
         .flat_map(|p| p.to_array())
         .map(|x| {
-            let x = if x.is_finite() { x.max(0.0) } else { 0.0 };
-            srgb_encode(x / (1.0 + x))
+            // NaN and negative values show black, +infinity white.
+            let x = if x.is_nan() { 0.0 } else { x.max(0.0) };
+            srgb_encode(if x.is_finite() { x / (1.0 + x) } else { 1.0 })
         })
         .collect()
 }

@@ -1,29 +1,35 @@
-//! Convergence charts (000 Fig. 4.x): RMS error against render time, both on log scales, one
+//! Convergence charts (000 ch. 4): RMS error against render time, both on log scales, one
 //! series per input labelled by technique and radius. PNG or SVG by the output's extension.
-//! The font ships with the project (assets/fonts), so no system font stack is needed.
+//! The font ships with the project (assets/fonts) and is compiled in, so no system font stack
+//! (fontconfig, freetype) is needed.
 
-use crate::film::{atomic_write, FilmError, Metadata};
+use crate::film::{atomic_write, FilmError, Metadata, TraceWindow};
 use crate::tools::metadata;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::sync::Once;
+use std::sync::OnceLock;
 
 const FONT: &str = "vmerge-sans";
-const SIZE: (u32, u32) = (960, 640);
+/// Series of at most this many samples are drawn with a mark per sample.
+const MARKED: usize = 30;
+/// Size of one chart in pixels; a grid of charts is a multiple of it.
+const CHART: (u32, u32) = (960, 640);
 
-fn register_font() {
-    static ONCE: Once = Once::new();
-    ONCE.call_once(|| {
-        // The bytes are a valid TrueType font compiled into the binary; failure is impossible
-        // short of a corrupt build, and then text is simply not drawn.
-        let _ = plotters::style::register_font(
-            FONT,
-            FontStyle::Normal,
-            include_bytes!("../../assets/fonts/DejaVuSans.ttf"),
-        );
-    });
+/// Registers the font compiled into the binary (DejaVu Sans, assets/fonts) with plotters, once.
+fn register_font() -> Result<(), String> {
+    static RESULT: OnceLock<Result<(), String>> = OnceLock::new();
+    RESULT
+        .get_or_init(|| {
+            plotters::style::register_font(
+                FONT,
+                FontStyle::Normal,
+                include_bytes!("../../assets/fonts/DejaVuSans.ttf"),
+            )
+            .map_err(|_| "the built-in font does not load".to_string())
+        })
+        .clone()
 }
 
 struct Series {
@@ -32,26 +38,78 @@ struct Series {
     points: Vec<Vec<(f64, f64)>>,
 }
 
-fn label(m: &Metadata) -> String {
-    let mut label = m.options.technique.name().to_string();
-    if let Some(r) = m.options.radius {
-        label.push_str(&format!(" r={r}"));
-    }
-    label
+/// The technique and, when given, the radius; inputs that would share a label get their file
+/// name appended.
+fn labels(inputs: &[(PathBuf, Metadata)]) -> Vec<String> {
+    let short: Vec<String> = inputs
+        .iter()
+        .map(|(_, m)| match m.options.radius {
+            Some(r) => format!("{} r={r}", m.options.technique.name()),
+            None => m.options.technique.name().to_string(),
+        })
+        .collect();
+    short
+        .iter()
+        .zip(inputs)
+        .map(|(label, (path, _))| {
+            if short.iter().filter(|l| *l == label).count() > 1 {
+                let name = path.file_stem().unwrap_or(path.as_os_str());
+                format!("{label} ({})", name.to_string_lossy())
+            } else {
+                label.clone()
+            }
+        })
+        .collect()
 }
 
-fn load_series(inputs: &[PathBuf]) -> Result<Vec<Series>, FilmError> {
-    inputs
+/// The series of `inputs` and, with `traces`, their common trace windows.
+fn load_series(
+    inputs: &[PathBuf],
+    traces: bool,
+) -> Result<(Vec<Series>, Vec<TraceWindow>), FilmError> {
+    let loaded: Vec<(PathBuf, Metadata)> = inputs
         .iter()
-        .map(|path| {
-            let m = metadata(path)?;
-            if m.errors.is_empty() {
-                return Err(FilmError::Invalid {
-                    file: path.clone(),
-                    message: "has no error series (render it with --reference)".into(),
-                });
-            }
-            let windows = m.traces.len();
+        .map(|path| Ok((path.clone(), metadata(path)?)))
+        .collect::<Result<_, FilmError>>()?;
+    let Some((first_path, first)) = loaded.first() else {
+        return Err(FilmError::Invalid {
+            file: PathBuf::new(),
+            message: "plot needs at least one input".into(),
+        });
+    };
+    for (path, m) in &loaded {
+        let invalid = |message: String| FilmError::Invalid {
+            file: path.clone(),
+            message,
+        };
+        if m.errors.is_empty() {
+            return Err(invalid(
+                "has no error series (render it with --reference)".into(),
+            ));
+        }
+        if traces && m.traces.is_empty() {
+            return Err(invalid(
+                "has no trace windows (render it with --trace)".into(),
+            ));
+        }
+        if traces && m.traces != first.traces {
+            return Err(invalid(format!(
+                "has other trace windows than {}: the charts would mix windows",
+                first_path.display()
+            )));
+        }
+    }
+    let windows = if traces {
+        first.traces.clone()
+    } else {
+        Vec::new()
+    };
+    let labels = labels(&loaded);
+    let series = loaded
+        .into_iter()
+        .zip(labels)
+        .map(|((_, m), label)| {
+            let windows = if traces { m.traces.len() } else { 0 };
             let mut points = vec![Vec::new(); windows + 1];
             for e in &m.errors {
                 points[0].push((e.seconds, e.rmse));
@@ -59,24 +117,24 @@ fn load_series(inputs: &[PathBuf]) -> Result<Vec<Series>, FilmError> {
                     points[w + 1].push((e.seconds, *rmse));
                 }
             }
-            Ok(Series {
-                label: label(&m),
-                points,
-            })
+            Series { label, points }
         })
-        .collect()
+        .collect();
+    Ok((series, windows))
 }
 
-/// Draws the charts of `inputs` into `out` (.png or .svg). With `traces`, one chart per trace
-/// window is drawn beside the whole-image chart, in a grid in the same file.
+/// Draws the convergence chart of `inputs` (vmerge renders made with `--reference`) into
+/// `out`: SVG when its extension is `.svg`, PNG otherwise. Each input is one series, RMS error
+/// against render time on log-log axes, labelled with its technique and radius.
+///
+/// With `traces`, the same file holds a grid of charts: the whole image first, then one chart
+/// per trace window (the inputs must share their windows).
 pub fn plot(out: &Path, inputs: &[PathBuf], traces: bool) -> Result<(), FilmError> {
-    register_font();
-    let series = load_series(inputs)?;
-    let charts = if traces {
-        series.iter().map(|s| s.points.len()).min().unwrap_or(1)
-    } else {
-        1
-    };
+    let (series, windows) = load_series(inputs, traces)?;
+    let charts = 1 + windows.len();
+    let columns = (charts as f64).sqrt().ceil() as u32;
+    let rows = (charts as u32).div_ceil(columns);
+    let size = (CHART.0 * columns, CHART.1 * rows);
     let svg = out
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("svg"));
@@ -87,18 +145,18 @@ pub fn plot(out: &Path, inputs: &[PathBuf], traces: bool) -> Result<(), FilmErro
     if svg {
         let mut text = String::new();
         {
-            let root = SVGBackend::with_string(&mut text, SIZE).into_drawing_area();
-            draw(&root, &series, charts).map_err(err)?;
+            let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
+            draw(&root, &series, &windows, (rows, columns)).map_err(err)?;
         }
         atomic_write(out, |f| f.write_all(text.as_bytes())).map_err(|e| err(e.to_string()))
     } else {
-        let mut buffer = vec![0u8; (SIZE.0 * SIZE.1 * 3) as usize];
+        let mut buffer = vec![0u8; size.0 as usize * size.1 as usize * 3];
         {
-            let root = BitMapBackend::with_buffer(&mut buffer, SIZE).into_drawing_area();
-            draw(&root, &series, charts).map_err(err)?;
+            let root = BitMapBackend::with_buffer(&mut buffer, size).into_drawing_area();
+            draw(&root, &series, &windows, (rows, columns)).map_err(err)?;
         }
         atomic_write(out, |f| {
-            let mut encoder = ::png::Encoder::new(f, SIZE.0, SIZE.1);
+            let mut encoder = ::png::Encoder::new(f, size.0, size.1);
             encoder.set_color(::png::ColorType::Rgb);
             encoder.set_depth(::png::BitDepth::Eight);
             let mut w = encoder.write_header().map_err(std::io::Error::other)?;
@@ -112,17 +170,16 @@ pub fn plot(out: &Path, inputs: &[PathBuf], traces: bool) -> Result<(), FilmErro
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     series: &[Series],
-    charts: usize,
+    windows: &[TraceWindow],
+    (rows, columns): (u32, u32),
 ) -> Result<(), String> {
+    register_font()?;
     root.fill(&WHITE).map_err(|e| e.to_string())?;
-    let columns = (charts as f64).sqrt().ceil() as usize;
-    let rows = charts.div_ceil(columns);
-    let areas = root.split_evenly((rows, columns));
-    for (chart, area) in areas.iter().enumerate().take(charts) {
-        let title = if chart == 0 {
-            "whole image".to_string()
-        } else {
-            format!("trace window {}", chart - 1)
+    let areas = root.split_evenly((rows as usize, columns as usize));
+    for (chart, area) in areas.iter().enumerate().take(1 + windows.len()) {
+        let title = match chart {
+            0 => "whole image".to_string(),
+            w => format!("trace window {} ({})", w - 1, windows[w - 1]),
         };
         let all: Vec<(f64, f64)> = series
             .iter()
@@ -136,20 +193,32 @@ fn draw<DB: DrawingBackend>(
             .margin(10)
             .x_label_area_size(40)
             .y_label_area_size(70)
-            .build_cartesian_2d((t0..t1).log_scale(), (e0..e1).log_scale())
+            .build_cartesian_2d(
+                (t0..t1).log_scale().with_key_points(log_ticks(t0, t1)),
+                (e0..e1).log_scale().with_key_points(log_ticks(e0, e1)),
+            )
             .map_err(|e| e.to_string())?;
         ctx.configure_mesh()
             .x_desc("time [s]")
             .y_desc("RMS error")
+            .x_label_formatter(&|v| tick(*v))
+            .y_label_formatter(&|v| tick(*v))
             .label_style((FONT, 14))
+            .axis_desc_style((FONT, 16))
             .draw()
             .map_err(|e| e.to_string())?;
         for (i, s) in series.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
-            let points = s.points[chart]
+            let points: Vec<(f64, f64)> = s.points[chart]
                 .iter()
                 .copied()
-                .filter(|&(t, e)| t > 0.0 && e > 0.0);
+                .filter(|&(t, e)| t > 0.0 && e > 0.0)
+                .collect();
+            // Short series get a mark per sample, so that even one sample shows.
+            if points.len() <= MARKED {
+                ctx.draw_series(points.iter().map(|&p| Circle::new(p, 3, color.filled())))
+                    .map_err(|e| e.to_string())?;
+            }
             ctx.draw_series(LineSeries::new(points, color.stroke_width(2)))
                 .map_err(|e| e.to_string())?
                 .label(s.label.clone())
@@ -157,7 +226,9 @@ fn draw<DB: DrawingBackend>(
                     PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
                 });
         }
+        // Errors fall with time, so the upper right corner is the free one.
         ctx.configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .label_font((FONT, 14))
@@ -165,6 +236,45 @@ fn draw<DB: DrawingBackend>(
             .map_err(|e| e.to_string())?;
     }
     root.present().map_err(|e| e.to_string())
+}
+
+/// Round values between `lo` and `hi` (> 0) for a log axis: 1, 2, ..., 9 times the powers of
+/// ten when the range spans less than a decade, 1, 2, 3, 5 times them up to 2.5 decades, 1, 2, 5
+/// times them up to five, the powers alone beyond (every few powers over many decades).
+fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    let decades = (hi / lo).log10();
+    let mantissas: &[f64] = if decades < 1.0 {
+        &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]
+    } else if decades < 2.5 {
+        &[1.0, 2.0, 3.0, 5.0]
+    } else if decades < 5.0 {
+        &[1.0, 2.0, 5.0]
+    } else {
+        &[1.0]
+    };
+    let step = (decades / 8.0).ceil().max(1.0) as i32;
+    let first = lo.log10().floor() as i32;
+    let last = hi.log10().ceil() as i32;
+    (first..=last)
+        .step_by(step as usize)
+        .flat_map(|e| mantissas.iter().map(move |m| m * 10f64.powi(e)))
+        .filter(|v| (lo..=hi).contains(v))
+        .collect()
+}
+
+/// A tick label with three significant digits at most: `0.25`, `120`, `3e-5`.
+fn tick(v: f64) -> String {
+    if v == 0.0 || (1e-3..1e5).contains(&v.abs()) {
+        let digits = (2 - v.abs().log10().floor() as i32).max(0) as usize;
+        let text = format!("{v:.digits$}");
+        if text.contains('.') {
+            text.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            text
+        }
+    } else {
+        format!("{v:.1e}")
+    }
 }
 
 /// A positive range covering `values`, padded so a single value still makes an axis.
