@@ -123,6 +123,21 @@ pub struct RenderJob<'a> {
     pub snapshot_every: Option<Duration>,
 }
 
+/// Measures the current image against the reference, if any, and records the sample in the
+/// metadata; returns its RMS error.
+fn record_error(
+    tracker: &Option<ErrorTracker>,
+    film: &Film,
+    metadata: &mut Metadata,
+) -> Option<f64> {
+    let sample = tracker
+        .as_ref()?
+        .measure(&film.mean(), metadata.render_seconds, film.iterations);
+    let rmse = sample.rmse;
+    metadata.errors.push(sample);
+    Some(rmse)
+}
+
 /// Set by a signal handler (or a test) to stop the render after the current iteration.
 pub type StopFlag = Arc<AtomicBool>;
 
@@ -168,18 +183,13 @@ impl RenderJob<'_> {
             let elapsed = start.elapsed();
             self.metadata.render_seconds = earlier_seconds + elapsed.as_secs_f64();
             // Errors every iteration, but at most once a second: measuring a large image costs.
+            // Errors at every power-of-two iteration (even spacing on the log-log convergence
+            // charts) and otherwise at most once a second: measuring a large image costs.
             let mut rmse = None;
-            if let Some(tracker) = &self.tracker {
-                if last_error.is_none_or(|t| t.elapsed() >= Duration::from_secs(1)) {
-                    let sample = tracker.measure(
-                        &self.film.mean(),
-                        self.metadata.render_seconds,
-                        self.film.iterations,
-                    );
-                    rmse = Some(sample.rmse);
-                    self.metadata.errors.push(sample);
-                    last_error = Some(Instant::now());
-                }
+            let due = last_error.is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
+            if self.tracker.is_some() && (due || self.film.iterations.is_power_of_two()) {
+                rmse = record_error(&self.tracker, &self.film, &mut self.metadata);
+                last_error = Some(Instant::now());
             }
             let seconds = elapsed.as_secs_f64().max(1e-9);
             on_progress(&Progress {
@@ -198,6 +208,10 @@ impl RenderJob<'_> {
                 self.write()?;
                 last_snapshot = Instant::now();
             }
+        }
+        let recorded = self.metadata.errors.last().map(|e| e.iterations);
+        if iterations_here > 0 && recorded != Some(self.film.iterations) {
+            record_error(&self.tracker, &self.film, &mut self.metadata);
         }
         self.metadata.statistics = integrator.statistics();
         self.write()
