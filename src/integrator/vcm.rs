@@ -127,6 +127,8 @@ pub struct VertexCm<'a> {
     modes: Modes,
     base_radius: f32,
     alpha: f32,
+    /// Light vertices stored in the last iteration, for the statistics.
+    stored_vertices: usize,
 }
 
 impl<'a> VertexCm<'a> {
@@ -144,6 +146,7 @@ impl<'a> VertexCm<'a> {
             modes,
             base_radius,
             alpha,
+            stored_vertices: 0,
         }
     }
 
@@ -666,6 +669,7 @@ impl Integrator for VertexCm<'_> {
             stats.rays += chunk_stats.rays;
             stats.dropped_samples += chunk_stats.dropped_samples;
         }
+        self.stored_vertices = vertices.len();
         let grid = self.modes.vm.then(|| {
             let positions: Vec<Vec3> = vertices.iter().map(|v| v.position).collect();
             HashGrid::build(&positions, w.radius)
@@ -699,12 +703,21 @@ impl Integrator for VertexCm<'_> {
     }
 
     fn statistics(&self) -> Vec<(String, String)> {
-        if !self.modes.vm {
-            return Vec::new();
+        let paths = self.ctx.camera.pixel_count().max(1);
+        let mut stats = vec![
+            (
+                "light_vertices_per_path".into(),
+                format!("{:.3}", self.stored_vertices as f64 / paths as f64),
+            ),
+            (
+                "light_vertex_bytes".into(),
+                std::mem::size_of::<LightVertex>().to_string(),
+            ),
+        ];
+        if self.modes.vm {
+            stats.push(("base_radius".into(), self.base_radius.to_string()));
+            stats.push(("alpha".into(), self.alpha.to_string()));
         }
-        vec![
-            ("base_radius".into(), self.base_radius.to_string()),
-            ("alpha".into(), self.alpha.to_string()),
-        ]
+        stats
     }
 }
