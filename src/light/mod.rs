@@ -128,8 +128,8 @@ impl Light {
         }
     }
 
-    /// A point on the light as seen from `receiver`, for random numbers `u`.
-    pub fn illuminate(&self, receiver: Vec3, u: [f32; 2]) -> Option<Illumination> {
+    /// A uniform point on an area light: position, normal, density per area, radiance.
+    fn area_point(&self, u: [f32; 2]) -> Option<(Vec3, Vec3, f32, Rgb)> {
         match *self {
             Light::Triangle {
                 vertices,
@@ -139,7 +139,7 @@ impl Light {
             } => {
                 let (b1, b2) = sampling::uniform_triangle(u);
                 let p = (1.0 - b1 - b2) * vertices[0] + b1 * vertices[1] + b2 * vertices[2];
-                area_illumination(receiver, p, normal, 1.0 / area, radiance)
+                Some((p, normal, 1.0 / area, radiance))
             }
             Light::Sphere {
                 center,
@@ -147,8 +147,23 @@ impl Light {
                 radiance,
             } => {
                 let n = sampling::uniform_sphere(u);
-                let p = center + radius * n;
-                area_illumination(receiver, p, n, 1.0 / (4.0 * PI * radius * radius), radiance)
+                Some((
+                    center + radius * n,
+                    n,
+                    1.0 / (4.0 * PI * radius * radius),
+                    radiance,
+                ))
+            }
+            _ => None,
+        }
+    }
+
+    /// A point on the light as seen from `receiver`, for random numbers `u`.
+    pub fn illuminate(&self, receiver: Vec3, u: [f32; 2]) -> Option<Illumination> {
+        match *self {
+            Light::Triangle { .. } | Light::Sphere { .. } => {
+                let (p, normal, pdf_a, radiance) = self.area_point(u)?;
+                area_illumination(receiver, p, normal, pdf_a, radiance)
             }
             Light::Point {
                 position,
@@ -203,24 +218,9 @@ impl Light {
     /// direction.
     pub fn emit(&self, u_pos: [f32; 2], u_dir: [f32; 2]) -> Option<Emission> {
         match *self {
-            Light::Triangle {
-                vertices,
-                normal,
-                area,
-                radiance,
-            } => {
-                let (b1, b2) = sampling::uniform_triangle(u_pos);
-                let p = (1.0 - b1 - b2) * vertices[0] + b1 * vertices[1] + b2 * vertices[2];
-                area_emission(p, normal, 1.0 / area, radiance, u_dir)
-            }
-            Light::Sphere {
-                center,
-                radius,
-                radiance,
-            } => {
-                let n = sampling::uniform_sphere(u_pos);
-                let pdf_a = 1.0 / (4.0 * PI * radius * radius);
-                area_emission(center + radius * n, n, pdf_a, radiance, u_dir)
+            Light::Triangle { .. } | Light::Sphere { .. } => {
+                let (p, normal, pdf_a, radiance) = self.area_point(u_pos)?;
+                area_emission(p, normal, pdf_a, radiance, u_dir)
             }
             Light::Point {
                 position,
