@@ -130,6 +130,12 @@ struct TechniqueArgs {
     /// Vertex connection only (vcm).
     #[arg(long)]
     no_vm: bool,
+    /// bpt: render only the technique with S light and T eye vertices (T counts the camera).
+    #[arg(long, value_name = "S,T", value_parser = parse_strategy)]
+    strategy: Option<[u32; 2]>,
+    /// bpt: leave out the MIS weights (with --strategy: one technique's full estimate).
+    #[arg(long)]
+    unweighted: bool,
 }
 
 #[derive(Args)]
@@ -188,6 +194,18 @@ fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
         return Err(format!("'{s}' has a zero side"));
     }
     Ok([w, h])
+}
+
+fn parse_strategy(s: &str) -> Result<[u32; 2], String> {
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("'{s}': expected S,T (two whole numbers)"))
+    };
+    match s.split_once(',') {
+        Some((a, b)) => Ok([parse(a)?, parse(b)?]),
+        None => Err(format!("'{s}': expected S,T (two whole numbers)")),
+    }
 }
 
 fn parse_trace(s: &str) -> Result<vmerge::film::TraceWindow, String> {
@@ -276,7 +294,10 @@ fn render(args: RenderArgs) -> Result<()> {
         roulette: t.roulette,
         no_vc: t.no_vc,
         no_vm: t.no_vm,
+        strategy: t.strategy,
+        unweighted: t.unweighted,
     };
+    options.validate()?;
     let setup = vmerge::render::NewRender {
         scene: args.scene,
         options,

@@ -20,6 +20,10 @@ pub enum RenderError {
     Film(#[from] FilmError),
     #[error("say when to stop: --iterations N and/or --time T")]
     NoStop,
+    #[error("--strategy and --unweighted apply to --technique bpt, not {0}")]
+    BptOnly(&'static str),
+    #[error("--strategy {0},{1}: no such technique (t counts the camera vertex, so t >= 1 and s + t >= 2)")]
+    NoSuchStrategy(u32, u32),
     #[error("{file}: the scene changed since this render began (hash {recorded} recorded, {now} now); use --force to continue anyway")]
     SceneChanged {
         file: PathBuf,
@@ -47,6 +51,27 @@ pub struct RenderOptions {
     pub roulette: u32,
     pub no_vc: bool,
     pub no_vm: bool,
+    /// `bpt` only: render the contribution of one (s, t) technique alone.
+    #[serde(default)]
+    pub strategy: Option<[u32; 2]>,
+    /// `bpt` only: leave the MIS weights out (each technique at weight 1).
+    #[serde(default)]
+    pub unweighted: bool,
+}
+
+impl RenderOptions {
+    /// Rejects combinations of options that do not mean anything.
+    pub fn validate(&self) -> Result<(), RenderError> {
+        if (self.strategy.is_some() || self.unweighted) && self.technique != Technique::Bpt {
+            return Err(RenderError::BptOnly(self.technique.name()));
+        }
+        if let Some([s, t]) = self.strategy {
+            if t == 0 || s + t < 2 {
+                return Err(RenderError::NoSuchStrategy(s, t));
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Default for RenderOptions {
@@ -63,6 +88,8 @@ impl Default for RenderOptions {
             roulette: 3,
             no_vc: false,
             no_vm: false,
+            strategy: None,
+            unweighted: false,
         }
     }
 }

@@ -65,3 +65,78 @@ fn vcm_converges_to_bpt() {
         );
     }
 }
+
+/// The caustic under the glass sphere of `caustic`, seen through the sphere, is lit along
+/// light-specular-specular-diffuse-specular-specular-eye paths from a point light: no
+/// connection can sample them (every connection needs two non-specular ends), merging can.
+/// Over the pixels that look through the sphere at the floor in its shadow, where the caustic
+/// lies, vcm must be brighter than bpt by far more than the noise; over the pixels that see no
+/// glass at all, the two agree in the mean.
+#[test]
+fn vcm_renders_the_caustic_seen_through_the_glass() {
+    use vmerge::accel::Ray;
+    use vmerge::bsdf::{Bsdf, MaterialKind, TransportMode};
+    let scene = load("caustic");
+    let size = 32;
+    let bpt = render_stats(&scene, &floor_view(Technique::Bpt, size), 1024);
+    let vcm = render_stats(&scene, &floor_view(Technique::Vcm, size), 1024);
+    let camera = vmerge::scene::Camera::new(scene.camera(Some("floor")).unwrap(), size, size);
+    let is_glass =
+        |material: u32| matches!(scene.material(material).kind, MaterialKind::Glass { .. });
+    // Follows a pixel's centre ray through the glass by refraction (the ray most of the
+    // pixel's light takes) to the first diffuse surface: (saw glass, where it ended).
+    let follow = |pixel: usize| {
+        let (x, y) = (
+            (pixel % size as usize) as f32,
+            (pixel / size as usize) as f32,
+        );
+        let mut ray = camera.generate_ray(x + 0.5, y + 0.5);
+        let mut through_glass = false;
+        for _ in 0..8 {
+            let hit = scene.intersect(&ray)?;
+            if !is_glass(hit.material) {
+                return Some((through_glass, hit.position));
+            }
+            through_glass = true;
+            let kind = &scene.material(hit.material).kind;
+            let bsdf = Bsdf::new(kind, hit.ng, -ray.dir.normalize(), TransportMode::Radiance)?;
+            let refracted = bsdf.sample([0.9999, 0.5, 0.5])?;
+            ray = Ray::spawn(hit.position, hit.ng, refracted.wi);
+        }
+        None
+    };
+    // The light at (0, 1.2, 1) shines through the sphere's centre (0, 0.45, 0) onto the floor
+    // around (0, 0, -0.6), where the glass focuses it; seen through the sphere, which magnifies
+    // what lies behind it, that floor fills most of the sphere's pixels.
+    let ends: Vec<_> = (0..(size * size) as usize).map(follow).collect();
+    let caustic: Vec<usize> = (0..ends.len())
+        .filter(|&i| {
+            ends[i].is_some_and(|(glass, p)| {
+                glass && p.y.abs() < 1e-3 && p.x * p.x + (p.z + 0.6) * (p.z + 0.6) < 0.5 * 0.5
+            })
+        })
+        .collect();
+    let clear: Vec<usize> = (0..ends.len())
+        .filter(|&i| ends[i].is_some_and(|(glass, _)| !glass))
+        .collect();
+    assert!(caustic.len() >= 10, "{} caustic pixels", caustic.len());
+    let window = |stats: &PixelStats, pixels: &[usize]| {
+        let n = pixels.len() as f64;
+        let mean = pixels.iter().map(|&i| stats.mean[i]).sum::<f64>() / n;
+        let var = pixels.iter().map(|&i| stats.var_of_mean[i]).sum::<f64>() / (n * n);
+        (mean, var)
+    };
+    let ((v, v_var), (b, b_var)) = (window(&vcm, &caustic), window(&bpt, &caustic));
+    let se = (v_var + b_var).sqrt();
+    assert!(
+        v - b > 6.0 * se && v > 1.5 * b,
+        "through the glass ({} pixels): vcm {v}, bpt {b} (se {se})",
+        caustic.len()
+    );
+    let ((v, v_var), (b, b_var)) = (window(&vcm, &clear), window(&bpt, &clear));
+    let se = (v_var + b_var).sqrt();
+    assert!(
+        (v - b).abs() < (0.02 * b).max(4.0 * se),
+        "elsewhere: vcm {v}, bpt {b} (se {se})"
+    );
+}

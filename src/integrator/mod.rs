@@ -5,6 +5,8 @@ use crate::color::Rgb;
 use crate::render::RenderOptions;
 use crate::scene::{Camera, Scene};
 
+pub mod bpt;
+pub mod mis;
 pub mod pt;
 pub mod vcm;
 
@@ -93,7 +95,8 @@ pub trait Integrator: Send + Sync {
 pub fn create<'a>(ctx: RenderContext<'a>) -> Box<dyn Integrator + 'a> {
     match ctx.options.technique {
         Technique::Pt => Box::new(pt::PathTracer::new(ctx)),
-        Technique::Lt | Technique::Bpt | Technique::Ppm | Technique::Bpm | Technique::Vcm => {
+        Technique::Bpt => Box::new(bpt::Bpt::new(ctx)),
+        Technique::Lt | Technique::Ppm | Technique::Bpm | Technique::Vcm => {
             Box::new(vcm::VertexCm::new(ctx))
         }
         Technique::Upg | Technique::UpgCamera => todo!("{}", ctx.options.technique.name()),

@@ -1,7 +1,7 @@
 //! Vertex connection and merging (001), and the techniques that are special cases of it: light
-//! tracing (`lt`), bidirectional path tracing (`bpt`, VC only: 001 sec. 5.5, eta_VCM = 0),
-//! bidirectional photon mapping (`bpm`, VM only: 001 sec. 5.6) and progressive photon mapping
-//! (`ppm`, one merge at the first non-specular eye vertex).
+//! tracing (`lt`), bidirectional photon mapping (`bpm`, VM only: 001 sec. 5.6) and progressive
+//! photon mapping (`ppm`, one merge at the first non-specular eye vertex). With `--no-vm` it is
+//! BPT (001 sec. 5.5, eta_VCM = 0), which `bpt.rs` implements separately as its cross-check.
 //!
 //! The structure follows SmallVCM's VertexCM: an iteration traces one light sub-path per pixel
 //! (n_light = n_VM = pixel count, 001 sec. 2.3), stores its non-specular vertices with the MIS
@@ -14,6 +14,7 @@
 //! Russian roulette is left out of the pdfs the weights use: weights only need to sum to one
 //! over the techniques, and every technique evaluates the same pdfs.
 
+use super::mis::{Power, VcmVertex, VcmWeights};
 use super::{Integrator, IterationStats, RenderContext, Technique};
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
@@ -24,7 +25,6 @@ use crate::sampling::{Rng, Stream};
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
 use rayon::prelude::*;
-use std::f32::consts::PI;
 
 /// Light paths traced by one parallel task. Fixed, so results do not depend on threads.
 const LIGHT_CHUNK: usize = 256;
@@ -46,7 +46,6 @@ impl Modes {
     fn for_technique(technique: Technique, no_vc: bool, no_vm: bool) -> Self {
         let (vc, vm, ppm, light_trace) = match technique {
             Technique::Lt => (false, false, false, true),
-            Technique::Bpt => (true, false, false, false),
             Technique::Ppm => (false, true, true, false),
             Technique::Bpm => (false, true, false, false),
             _ => (!no_vc, !no_vm, false, false),
@@ -72,9 +71,7 @@ pub struct LightVertex {
     pub material: u32,
     /// Segments from the light to this vertex.
     pub path_length: u32,
-    pub d_vcm: f32,
-    pub d_vc: f32,
-    pub d_vm: f32,
+    pub mis: VcmVertex,
 }
 
 /// What one task of the light pass produces: vertices and where each path's end, camera
@@ -97,29 +94,7 @@ struct SubPath {
     finite_light: bool,
     /// Eye sub-paths: every scattering so far was a delta lobe.
     specular: bool,
-    d_vcm: f32,
-    d_vc: f32,
-    d_vm: f32,
-}
-
-/// Per-iteration constants of the weights.
-#[derive(Clone, Copy, Debug)]
-struct Weights {
-    beta: f32,
-    light_paths: f32,
-    radius: f32,
-    /// mis(eta_VCM) and mis(1 / eta_VCM) when both VC and VM run, else 0 (001 sec. 5.5-5.6).
-    vm_factor: f32,
-    vc_factor: f32,
-    /// 1 / (pi r^2 n_VM): the density estimate's normalisation.
-    vm_normalization: f32,
-}
-
-impl Weights {
-    #[inline]
-    fn mis(&self, x: f32) -> f32 {
-        crate::sampling::mis_power(x, self.beta)
-    }
+    mis: VcmVertex,
 }
 
 pub struct VertexCm<'a> {
@@ -152,31 +127,16 @@ impl<'a> VertexCm<'a> {
 
     /// The constants of iteration `iteration` (0-based): 000 eq. 2.85's radius
     /// r_i = r_1 sqrt(i^(alpha - 1)) for i = iteration + 1.
-    fn weights(&self) -> impl Fn(u64) -> Weights + '_ {
-        move |iteration| {
-            let i = (iteration + 1) as f32;
-            let radius = (self.base_radius * i.powf(0.5 * (self.alpha - 1.0))).max(1e-7);
-            let light_paths = self.ctx.camera.pixel_count() as f32;
-            let eta_vcm = PI * radius * radius * light_paths;
-            let beta = self.ctx.options.beta;
-            let mis = |x: f32| crate::sampling::mis_power(x, beta);
-            Weights {
-                beta,
-                light_paths,
-                radius,
-                vm_factor: if self.modes.vm && self.modes.vc {
-                    mis(eta_vcm)
-                } else {
-                    0.0
-                },
-                vc_factor: if self.modes.vc && self.modes.vm {
-                    mis(1.0 / eta_vcm)
-                } else {
-                    0.0
-                },
-                vm_normalization: 1.0 / eta_vcm,
-            }
-        }
+    fn weights(&self, iteration: u64) -> VcmWeights {
+        let i = (iteration + 1) as f32;
+        let radius = (self.base_radius * i.powf(0.5 * (self.alpha - 1.0))).max(1e-7);
+        VcmWeights::new(
+            Power(self.ctx.options.beta),
+            radius,
+            self.ctx.camera.pixel_count() as f32,
+            self.modes.vc,
+            self.modes.vm,
+        )
     }
 
     fn scene(&self) -> &Scene {
@@ -184,7 +144,7 @@ impl<'a> VertexCm<'a> {
     }
 
     /// Starts a light sub-path (SmallVCM's GenerateLightSample; 001 eqs. 31-33).
-    fn light_sample(&self, w: &Weights, rng: &mut Rng) -> Option<SubPath> {
+    fn light_sample(&self, w: &VcmWeights, rng: &mut Rng) -> Option<SubPath> {
         let lights = &self.scene().lights;
         let (index, pick) = lights.pick(rng.next_f32())?;
         let light = lights.get(index);
@@ -195,15 +155,10 @@ impl<'a> VertexCm<'a> {
         if emission_pdf_w.is_nan() || emission_pdf_w <= 0.0 {
             return None;
         }
-        let d_vc = if light.is_delta() {
-            0.0
+        let cos_at_light = if light.is_finite() {
+            e.cos_at_light
         } else {
-            let cos = if light.is_finite() {
-                e.cos_at_light
-            } else {
-                1.0
-            };
-            w.mis(cos / emission_pdf_w)
+            1.0
         };
         let origin = if light.is_finite() && !light.is_delta() {
             Ray::spawn(e.position, e.normal, e.dir).origin
@@ -216,9 +171,7 @@ impl<'a> VertexCm<'a> {
             path_length: 1,
             finite_light: light.is_finite(),
             specular: false,
-            d_vcm: w.mis(direct_pdf_a / emission_pdf_w),
-            d_vc,
-            d_vm: d_vc * w.vc_factor,
+            mis: w.light_origin(direct_pdf_a, emission_pdf_w, cos_at_light, light.is_delta()),
         })
     }
 
@@ -226,7 +179,7 @@ impl<'a> VertexCm<'a> {
     /// `None` ends the path.
     fn scatter(
         &self,
-        w: &Weights,
+        w: &VcmWeights,
         state: &mut SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
@@ -241,18 +194,9 @@ impl<'a> VertexCm<'a> {
             state.throughput /= q;
         }
         let cos_out = bsdf.cos_theta(s.wi);
-        if s.delta {
-            // 001 sec. 5.3: delta pdfs cancel; only the cosine ratio survives.
-            state.d_vcm = 0.0;
-            state.d_vc *= w.mis(cos_out);
-            state.d_vm *= w.mis(cos_out);
-        } else {
+        w.scatter(&mut state.mis, cos_out, s.pdf_w, s.rev_pdf_w, s.delta);
+        if !s.delta {
             state.specular = false;
-            let ratio = w.mis(cos_out / s.pdf_w);
-            state.d_vc = ratio * (state.d_vc * w.mis(s.rev_pdf_w) + state.d_vcm + w.vm_factor);
-            state.d_vm =
-                ratio * (state.d_vm * w.mis(s.rev_pdf_w) + state.d_vcm * w.vc_factor + 1.0);
-            state.d_vcm = w.mis(1.0 / s.pdf_w);
         }
         state.throughput *= s.f * (cos_out / s.pdf_w);
         if state.throughput.is_black() {
@@ -265,22 +209,17 @@ impl<'a> VertexCm<'a> {
 
     /// Distance and cosine updates at a newly found vertex (SmallVCM; 001 eqs. 34-36 use the
     /// reverse geometry factor).
-    fn arrive(&self, w: &Weights, state: &mut SubPath, hit: &SurfaceHit, light_side: bool) {
+    fn arrive(&self, w: &VcmWeights, state: &mut SubPath, hit: &SurfaceHit, light_side: bool) {
         let distance = hit.hit.t * state.ray.dir.length();
-        if !light_side || state.path_length > 1 || state.finite_light {
-            state.d_vcm *= w.mis(distance * distance);
-        }
+        let with_distance = !light_side || state.path_length > 1 || state.finite_light;
         let cos = hit.ng.dot(-state.ray.dir.normalize()).abs();
-        let inv = 1.0 / w.mis(cos);
-        state.d_vcm *= inv;
-        state.d_vc *= inv;
-        state.d_vm *= inv;
+        w.arrive(&mut state.mis, distance, cos, with_distance);
     }
 
     /// Traces the light sub-path `index`; stores its vertices and returns its camera splats.
     fn trace_light_path(
         &self,
-        w: &Weights,
+        w: &VcmWeights,
         iteration: u64,
         index: usize,
         vertices: &mut Vec<LightVertex>,
@@ -317,9 +256,7 @@ impl<'a> VertexCm<'a> {
                         throughput: state.throughput,
                         material: hit.material,
                         path_length: state.path_length,
-                        d_vcm: state.d_vcm,
-                        d_vc: state.d_vc,
-                        d_vm: state.d_vm,
+                        mis: state.mis,
                     });
                 }
                 if self.modes.vc || self.modes.light_trace {
@@ -338,7 +275,7 @@ impl<'a> VertexCm<'a> {
     /// Connects a light vertex to the camera and splats it (t = 1; 001 eqs. 46-47).
     fn connect_to_camera(
         &self,
-        w: &Weights,
+        w: &VcmWeights,
         state: &SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
@@ -362,9 +299,7 @@ impl<'a> VertexCm<'a> {
         let weight = if self.modes.light_trace {
             1.0
         } else {
-            let w_light = w.mis(camera_pdf_a / w.light_paths)
-                * (w.vm_factor + state.d_vcm + state.d_vc * w.mis(eval.rev_pdf_w));
-            1.0 / (w_light + 1.0)
+            w.to_camera(&state.mis, camera_pdf_a, eval.rev_pdf_w)
         };
         let contribution = state.throughput * eval.f * (weight * camera_pdf_a / w.light_paths);
         stats.rays += 1;
@@ -378,7 +313,7 @@ impl<'a> VertexCm<'a> {
 
     /// Emission reached by an eye sub-path: an area light at `hit`, or the sky when `hit` is
     /// `None` (s = 0; 001 eqs. 42-43).
-    fn emission(&self, w: &Weights, state: &SubPath, hit: Option<&SurfaceHit>) -> Rgb {
+    fn emission(&self, w: &VcmWeights, state: &SubPath, hit: Option<&SurfaceHit>) -> Rgb {
         let lights = &self.scene().lights;
         let dir = state.ray.dir.normalize();
         let (received, index) = match hit {
@@ -409,15 +344,18 @@ impl<'a> VertexCm<'a> {
             };
         }
         let pick = lights.pick_pdf(index);
-        let w_camera = w.mis(received.direct_pdf_a * pick) * state.d_vcm
-            + w.mis(received.emission_pdf_w * pick) * state.d_vc;
-        received.radiance / (1.0 + w_camera)
+        received.radiance
+            * w.hit_light(
+                &state.mis,
+                received.direct_pdf_a * pick,
+                received.emission_pdf_w * pick,
+            )
     }
 
     /// Next-event estimation (s = 1; 001 eqs. 44-45).
     fn light_sampling(
         &self,
-        w: &Weights,
+        w: &VcmWeights,
         state: &SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
@@ -439,15 +377,17 @@ impl<'a> VertexCm<'a> {
             return Rgb::BLACK;
         }
         let cos_to_light = bsdf.cos_theta(il.dir_to_light);
-        let w_light = if light.is_delta() {
-            0.0
-        } else {
-            w.mis(eval.pdf_w / (pick * il.direct_pdf_w))
-        };
-        let w_camera = w
-            .mis(il.emission_pdf_w * cos_to_light / (il.direct_pdf_w * il.cos_at_light))
-            * (w.vm_factor + state.d_vcm + state.d_vc * w.mis(eval.rev_pdf_w));
-        let weight = 1.0 / (w_light + 1.0 + w_camera);
+        let weight = w.light_sample(
+            &state.mis,
+            eval.pdf_w,
+            eval.rev_pdf_w,
+            pick * il.direct_pdf_w,
+            il.direct_pdf_w,
+            il.emission_pdf_w,
+            cos_to_light,
+            il.cos_at_light,
+            light.is_delta(),
+        );
         stats.rays += 1;
         let shadow = if !il.distance.is_finite() {
             Ray::spawn(hit.position, hit.ng, il.dir_to_light)
@@ -465,7 +405,7 @@ impl<'a> VertexCm<'a> {
     /// Connects an eye vertex to a light vertex (s, t > 1; 001 eqs. 40-41).
     fn connect(
         &self,
-        w: &Weights,
+        w: &VcmWeights,
         state: &SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
@@ -498,11 +438,14 @@ impl<'a> VertexCm<'a> {
         // Solid-angle pdfs turned into area pdfs at the other end.
         let eye_pdf_a = eye_eval.pdf_w * cos_light / dist2;
         let light_pdf_a = light_eval.pdf_w * cos_eye / dist2;
-        let w_light =
-            w.mis(eye_pdf_a) * (w.vm_factor + lv.d_vcm + lv.d_vc * w.mis(light_eval.rev_pdf_w));
-        let w_camera = w.mis(light_pdf_a)
-            * (w.vm_factor + state.d_vcm + state.d_vc * w.mis(eye_eval.rev_pdf_w));
-        let weight = 1.0 / (w_light + 1.0 + w_camera);
+        let weight = w.connect(
+            &lv.mis,
+            &state.mis,
+            light_eval.rev_pdf_w,
+            eye_eval.rev_pdf_w,
+            light_pdf_a,
+            eye_pdf_a,
+        );
         stats.rays += 1;
         if self.scene().occluded(&Ray::spawn_between(
             hit.position,
@@ -519,7 +462,7 @@ impl<'a> VertexCm<'a> {
     /// normalised by 1 / (pi r^2 n_VM).
     fn merge(
         &self,
-        w: &Weights,
+        w: &VcmWeights,
         state: &SubPath,
         bsdf: &Bsdf,
         hit: &SurfaceHit,
@@ -537,13 +480,11 @@ impl<'a> VertexCm<'a> {
             if eval.f.is_black() {
                 return;
             }
-            let w_light = lv.d_vcm * w.vc_factor + lv.d_vm * w.mis(eval.pdf_w);
-            let w_camera = state.d_vcm * w.vc_factor + state.d_vm * w.mis(eval.rev_pdf_w);
             // PPM takes its one merge per eye path unweighted: no other technique competes.
             let weight = if self.modes.ppm {
                 1.0
             } else {
-                1.0 / (w_light + 1.0 + w_camera)
+                w.merge(&lv.mis, &state.mis, eval.pdf_w, eval.rev_pdf_w)
             };
             sum += eval.f * lv.throughput * weight;
         });
@@ -554,7 +495,7 @@ impl<'a> VertexCm<'a> {
     #[allow(clippy::too_many_arguments)]
     fn trace_eye_path(
         &self,
-        w: &Weights,
+        w: &VcmWeights,
         iteration: u64,
         pixel: usize,
         light_path: &[LightVertex],
@@ -575,9 +516,7 @@ impl<'a> VertexCm<'a> {
             path_length: 1,
             finite_light: true,
             specular: true,
-            d_vcm: w.mis(w.light_paths / camera_pdf_w),
-            d_vc: 0.0,
-            d_vm: 0.0,
+            mis: w.camera_origin(camera_pdf_w),
         };
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
@@ -627,7 +566,7 @@ impl<'a> VertexCm<'a> {
 
 impl Integrator for VertexCm<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
-        let w = self.weights()(iteration);
+        let w = self.weights(iteration);
         let paths = frame.len();
         // Light pass: fixed chunks of paths, concatenated in order.
         let chunks: Vec<LightChunk> = (0..paths)

@@ -1,0 +1,571 @@
+//! Bidirectional path tracing (000 sec. 2.3), its own code path so it can cross-check `vcm`
+//! (000 ch. 3.1): per pixel and iteration one light sub-path and one eye sub-path, every
+//! connection (s, t) with s light vertices and t eye vertices, the camera z_0 included:
+//!
+//! - s = 0: the eye sub-path reaches a light (or the sky);
+//! - s = 1: light sampling at an eye vertex (a fresh light point, as in SmallVCM);
+//! - t = 1: a light vertex connected to the camera and splatted into the film;
+//! - s, t >= 2: a light vertex connected to an eye vertex.
+//!
+//! The power-heuristic weights come from the partial sums of 000 eqs. (2.50)-(2.51)
+//! ([`BptVertex`]), updated in O(1) per vertex, so each weight costs O(1).
+//! Paths of one segment (the camera sees a light) are only found by s = 0 and take weight 1.
+//!
+//! Light-tracing splats of a fixed chunk of pixels are collected and added in chunk order, so
+//! the image does not depend on the thread count.
+
+use super::mis::{self, BptStep, BptVertex, Power};
+use super::{Integrator, IterationStats, RenderContext};
+use crate::accel::Ray;
+use crate::bsdf::{Bsdf, TransportMode};
+use crate::color::Rgb;
+use crate::film::add_sample;
+use crate::sampling::{Rng, Stream};
+use crate::scene::{Scene, SurfaceHit};
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Pixels traced by one parallel task. Fixed, so results do not depend on threads.
+const CHUNK: usize = 256;
+
+/// What one parallel task returns: its pixels' eye estimates, its light-tracing splats.
+struct Chunk {
+    colors: Vec<Rgb>,
+    splats: Vec<(usize, Rgb)>,
+    stats: IterationStats,
+}
+
+/// A connectable (non-delta) light sub-path vertex.
+#[derive(Clone, Copy, Debug)]
+struct LightVertex {
+    position: Vec3,
+    ng: Vec3,
+    /// Unit direction back towards the previous vertex.
+    wo: Vec3,
+    throughput: Rgb,
+    material: u32,
+    /// Index i of y_i: the light point is y_0, so s = i + 1 light vertices end here.
+    index: u32,
+    mis: BptVertex,
+}
+
+/// The step that leaves the current end of a sub-path, waiting for the vertex it reaches.
+#[derive(Clone, Copy, Debug)]
+struct Pending {
+    pdf_w: f32,
+    rev_pdf_w: f32,
+    /// |cos| at the vertex the step leaves (for g_rev).
+    cos_out: f32,
+    connectable: bool,
+    /// The step leaves an infinite light: no distance terms (001 sec. 5.1).
+    from_infinity: bool,
+}
+
+/// A sub-path being traced.
+#[derive(Clone, Copy, Debug)]
+struct SubPath {
+    ray: Ray,
+    throughput: Rgb,
+    /// Index of the vertex the ray will reach (1 for the first surface vertex).
+    index: u32,
+    mis: BptVertex,
+    pending: Pending,
+}
+
+impl SubPath {
+    /// 000 eq. (2.51) at the vertex `hit` just reached; a `None` hit is the sky, at infinity.
+    fn arrive(&mut self, power: Power, hit: Option<&SurfaceHit>) {
+        let p = self.pending;
+        let (g, g_rev) = match hit {
+            Some(h) => {
+                let dir = self.ray.dir.normalize();
+                let cos_in = h.ng.dot(dir).abs();
+                if p.from_infinity {
+                    (cos_in, 1.0)
+                } else {
+                    let d2 = (h.hit.t * self.ray.dir.length()).powi(2);
+                    (cos_in / d2, p.cos_out / d2)
+                }
+            }
+            None => (1.0, p.cos_out),
+        };
+        self.mis = self.mis.next(
+            power,
+            &BptStep {
+                pdf_w: p.pdf_w,
+                rev_pdf_w: p.rev_pdf_w,
+                g,
+                g_rev,
+                prev_connectable: p.connectable,
+            },
+        );
+    }
+}
+
+/// Which (s, t) contributions reach the image, and how they are weighted.
+#[derive(Clone, Copy, Debug)]
+struct Filter {
+    strategy: Option<(u32, u32)>,
+    unweighted: bool,
+}
+
+impl Filter {
+    fn allows(&self, s: u32, t: u32) -> bool {
+        self.strategy.is_none_or(|st| st == (s, t))
+    }
+
+    /// The light sub-path can be skipped when the one strategy shown does not use it.
+    fn needs_light_path(&self) -> bool {
+        self.strategy.is_none_or(|(s, _)| s >= 2)
+    }
+
+    fn weight(&self, weight: impl FnOnce() -> f32) -> f32 {
+        if self.unweighted {
+            1.0
+        } else {
+            weight()
+        }
+    }
+}
+
+pub struct Bpt<'a> {
+    ctx: RenderContext<'a>,
+    power: Power,
+    filter: Filter,
+    light_paths: f32,
+}
+
+impl<'a> Bpt<'a> {
+    pub fn new(ctx: RenderContext<'a>) -> Self {
+        let o = ctx.options;
+        Bpt {
+            power: Power(o.beta),
+            filter: Filter {
+                strategy: o.strategy.map(|[s, t]| (s, t)),
+                unweighted: o.unweighted,
+            },
+            light_paths: ctx.camera.pixel_count() as f32,
+            ctx,
+        }
+    }
+
+    fn scene(&self) -> &Scene {
+        self.ctx.scene
+    }
+
+    /// Samples the BSDF to continue a sub-path; `None` ends it.
+    fn scatter(
+        &self,
+        state: &mut SubPath,
+        hit: &SurfaceHit,
+        bsdf: &Bsdf,
+        rng: &mut Rng,
+    ) -> Option<()> {
+        let s = bsdf.sample([rng.next_f32(), rng.next_f32(), rng.next_f32()])?;
+        if state.index >= self.ctx.options.roulette {
+            let q = bsdf.continuation_probability();
+            if rng.next_f32() >= q {
+                return None;
+            }
+            state.throughput /= q;
+        }
+        let cos_out = bsdf.cos_theta(s.wi);
+        state.throughput *= s.f * (cos_out / s.pdf_w);
+        if state.throughput.is_black() {
+            return None;
+        }
+        // Delta pdfs cancel between the two directions at the vertex (001 sec. 5.3).
+        state.pending = Pending {
+            pdf_w: if s.delta { 1.0 } else { s.pdf_w },
+            rev_pdf_w: if s.delta { 1.0 } else { s.rev_pdf_w },
+            cos_out,
+            connectable: !s.delta,
+            from_infinity: false,
+        };
+        state.ray = Ray::spawn(hit.position, hit.ng, s.wi);
+        state.index += 1;
+        Some(())
+    }
+
+    /// Traces the light sub-path of one pixel: stores its connectable vertices and splats their
+    /// connections to the camera (t = 1).
+    fn trace_light_path(
+        &self,
+        rng: &mut Rng,
+        vertices: &mut Vec<LightVertex>,
+        splats: &mut Vec<(usize, Rgb)>,
+        stats: &mut IterationStats,
+    ) {
+        vertices.clear();
+        let lights = &self.scene().lights;
+        let Some((light_index, pick)) = lights.pick(rng.next_f32()) else {
+            return;
+        };
+        let light = lights.get(light_index);
+        let (u_pos, u_dir) = (rng.next_2d(), rng.next_2d());
+        let Some(e) = light.emit(u_pos, u_dir) else {
+            return;
+        };
+        if e.emission_pdf_w.is_nan() || e.emission_pdf_w <= 0.0 {
+            return;
+        }
+        let origin = if light.is_finite() && !light.is_delta() {
+            Ray::spawn(e.position, e.normal, e.dir).origin
+        } else {
+            e.position
+        };
+        let mut state = SubPath {
+            ray: Ray::new(origin, e.dir),
+            throughput: e.energy / (e.emission_pdf_w * pick),
+            index: 1,
+            mis: BptVertex::light_origin(self.power, e.direct_pdf_a * pick, !light.is_delta()),
+            pending: Pending {
+                pdf_w: e.emission_pdf_w / e.direct_pdf_a,
+                rev_pdf_w: 1.0,
+                cos_out: e.cos_at_light,
+                connectable: true,
+                from_infinity: !light.is_finite(),
+            },
+        };
+        let max_length = self.ctx.max_path_length();
+        loop {
+            stats.rays += 1;
+            let Some(hit) = self.scene().intersect(&state.ray) else {
+                break;
+            };
+            state.arrive(self.power, Some(&hit));
+            let wo = -state.ray.dir.normalize();
+            let material = &self.scene().material(hit.material).kind;
+            let Some(bsdf) = Bsdf::new(material, hit.ng, wo, TransportMode::Importance) else {
+                break;
+            };
+            if !bsdf.is_delta() {
+                let vertex = LightVertex {
+                    position: hit.position,
+                    ng: hit.ng,
+                    wo,
+                    throughput: state.throughput,
+                    material: hit.material,
+                    index: state.index,
+                    mis: state.mis,
+                };
+                vertices.push(vertex);
+                if self.filter.allows(state.index + 1, 1) {
+                    self.connect_to_camera(&vertex, &bsdf, splats, stats);
+                }
+            }
+            if state.index.saturating_add(2) > max_length {
+                break;
+            }
+            if self.scatter(&mut state, &hit, &bsdf, rng).is_none() {
+                break;
+            }
+        }
+    }
+
+    /// t = 1: the light vertex seen by the camera, splatted to its pixel.
+    fn connect_to_camera(
+        &self,
+        lv: &LightVertex,
+        bsdf: &Bsdf,
+        splats: &mut Vec<(usize, Rgb)>,
+        stats: &mut IterationStats,
+    ) {
+        let camera = &self.ctx.camera;
+        let Some((x, y)) = camera.raster(lv.position) else {
+            return;
+        };
+        let to_camera = camera.position - lv.position;
+        let dist2 = to_camera.length_squared();
+        let dir = to_camera / dist2.sqrt();
+        let eval = bsdf.eval(dir);
+        if eval.f.is_black() {
+            return;
+        }
+        let camera_pdf_a = camera.pdf_w(-dir) * bsdf.cos_theta(dir) / dist2;
+        let weight = self.filter.weight(|| {
+            mis::bpt_to_camera(
+                self.power,
+                &lv.mis,
+                eval.rev_pdf_w,
+                camera_pdf_a,
+                self.light_paths,
+            )
+        });
+        stats.rays += 1;
+        if self
+            .scene()
+            .occluded(&Ray::spawn_to(lv.position, lv.ng, camera.position))
+        {
+            return;
+        }
+        let value = lv.throughput * eval.f * (weight * camera_pdf_a / self.light_paths);
+        splats.push((camera.pixel_index(x, y), value));
+    }
+
+    /// s = 0: emission reached by the eye sub-path `state` at `hit` (the sky when `None`).
+    fn emission(&self, state: &SubPath, hit: Option<&SurfaceHit>) -> Rgb {
+        let t = state.index + 1;
+        if !self.filter.allows(0, t) {
+            return Rgb::BLACK;
+        }
+        let lights = &self.scene().lights;
+        let dir = state.ray.dir.normalize();
+        let (received, index) = match hit {
+            Some(h) => {
+                let Some(index) = h.light else {
+                    return Rgb::BLACK;
+                };
+                match lights.get(index).radiance(dir, h.ng) {
+                    Some(r) => (r, index),
+                    None => return Rgb::BLACK,
+                }
+            }
+            None => match (lights.background(dir), lights.sky()) {
+                (Some(r), Some(index)) => (r, index),
+                _ => return Rgb::BLACK,
+            },
+        };
+        if t == 2 {
+            return received.radiance;
+        }
+        let pick = lights.pick_pdf(index);
+        let weight = self.filter.weight(|| {
+            mis::bpt_hit_light(
+                self.power,
+                &state.mis,
+                received.direct_pdf_a * pick,
+                received.emission_pdf_w * pick,
+            )
+        });
+        received.radiance * weight
+    }
+
+    /// s = 1: light sampling at the eye vertex `hit`.
+    fn light_sampling(
+        &self,
+        state: &SubPath,
+        hit: &SurfaceHit,
+        bsdf: &Bsdf,
+        rng: &mut Rng,
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let lights = &self.scene().lights;
+        let u_pick = rng.next_f32();
+        let u = rng.next_2d();
+        if !self.filter.allows(1, state.index + 1) {
+            return Rgb::BLACK;
+        }
+        let Some((index, pick)) = lights.pick(u_pick) else {
+            return Rgb::BLACK;
+        };
+        let light = lights.get(index);
+        let Some(il) = light.illuminate(hit.position, u) else {
+            return Rgb::BLACK;
+        };
+        let eval = bsdf.eval(il.dir_to_light);
+        if eval.f.is_black() {
+            return Rgb::BLACK;
+        }
+        let cos_at_eye = bsdf.cos_theta(il.dir_to_light);
+        let weight = self.filter.weight(|| {
+            mis::bpt_light_sample(
+                self.power,
+                &state.mis,
+                eval.pdf_w,
+                eval.rev_pdf_w,
+                pick * il.direct_pdf_w,
+                il.direct_pdf_w,
+                il.emission_pdf_w,
+                cos_at_eye,
+                il.cos_at_light,
+                light.is_delta(),
+            )
+        });
+        stats.rays += 1;
+        let shadow = if !il.distance.is_finite() {
+            Ray::spawn(hit.position, hit.ng, il.dir_to_light)
+        } else if light.is_delta() {
+            Ray::spawn_to(hit.position, hit.ng, il.position)
+        } else {
+            Ray::spawn_between(hit.position, hit.ng, il.position, il.normal)
+        };
+        if self.scene().occluded(&shadow) {
+            return Rgb::BLACK;
+        }
+        il.radiance * eval.f * (weight * cos_at_eye / (pick * il.direct_pdf_w))
+    }
+
+    /// s, t >= 2: the eye vertex `hit` connected to the light vertex `lv`.
+    fn connect(
+        &self,
+        state: &SubPath,
+        hit: &SurfaceHit,
+        bsdf: &Bsdf,
+        lv: &LightVertex,
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let to_light = lv.position - hit.position;
+        let dist2 = to_light.length_squared();
+        if dist2 <= 0.0 {
+            return Rgb::BLACK;
+        }
+        let dir = to_light / dist2.sqrt();
+        let eye_eval = bsdf.eval(dir);
+        if eye_eval.f.is_black() {
+            return Rgb::BLACK;
+        }
+        let material = &self.scene().material(lv.material).kind;
+        let Some(light_bsdf) = Bsdf::new(material, lv.ng, lv.wo, TransportMode::Importance) else {
+            return Rgb::BLACK;
+        };
+        let light_eval = light_bsdf.eval(-dir);
+        if light_eval.f.is_black() {
+            return Rgb::BLACK;
+        }
+        let cos_eye = bsdf.cos_theta(dir);
+        let cos_light = light_bsdf.cos_theta(dir);
+        let weight = self.filter.weight(|| {
+            mis::bpt_connect(
+                self.power,
+                &lv.mis,
+                &state.mis,
+                light_eval.rev_pdf_w,
+                eye_eval.rev_pdf_w,
+                eye_eval.pdf_w * cos_light / dist2,
+                light_eval.pdf_w * cos_eye / dist2,
+            )
+        });
+        stats.rays += 1;
+        if self.scene().occluded(&Ray::spawn_between(
+            hit.position,
+            hit.ng,
+            lv.position,
+            lv.ng,
+        )) {
+            return Rgb::BLACK;
+        }
+        eye_eval.f * light_eval.f * lv.throughput * (weight * cos_eye * cos_light / dist2)
+    }
+
+    /// Traces the eye sub-path of `pixel` against its light sub-path `light_path`.
+    fn trace_eye_path(
+        &self,
+        rng: &mut Rng,
+        pixel: usize,
+        light_path: &[LightVertex],
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let camera = &self.ctx.camera;
+        let width = camera.width as usize;
+        let [jx, jy] = rng.next_2d();
+        let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
+        let mut state = SubPath {
+            ray,
+            throughput: Rgb::WHITE,
+            index: 1,
+            mis: BptVertex::camera_origin(),
+            // The camera's per-pixel pdf shared by the light sub-paths of every pixel, as
+            // `bpt_to_camera` counts it.
+            pending: Pending {
+                pdf_w: camera.pdf_w(ray.dir) / self.light_paths,
+                rev_pdf_w: 1.0,
+                cos_out: 1.0,
+                connectable: true,
+                from_infinity: false,
+            },
+        };
+        let max_length = self.ctx.max_path_length();
+        let mut color = Rgb::BLACK;
+        loop {
+            stats.rays += 1;
+            let hit = self.scene().intersect(&state.ray);
+            state.arrive(self.power, hit.as_ref());
+            color += state.throughput * self.emission(&state, hit.as_ref());
+            let Some(hit) = hit else {
+                break;
+            };
+            if state.index >= max_length {
+                break;
+            }
+            let wo = -state.ray.dir.normalize();
+            let material = &self.scene().material(hit.material).kind;
+            let Some(bsdf) = Bsdf::new(material, hit.ng, wo, TransportMode::Radiance) else {
+                break;
+            };
+            if !bsdf.is_delta() {
+                color += state.throughput * self.light_sampling(&state, &hit, &bsdf, rng, stats);
+                for lv in light_path {
+                    let s = lv.index + 1;
+                    if lv.index + state.index + 1 > max_length {
+                        break;
+                    }
+                    if self.filter.allows(s, state.index + 1) {
+                        color += state.throughput * self.connect(&state, &hit, &bsdf, lv, stats);
+                    }
+                }
+            }
+            if self.scatter(&mut state, &hit, &bsdf, rng).is_none() {
+                break;
+            }
+        }
+        color
+    }
+}
+
+impl Integrator for Bpt<'_> {
+    fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
+        let seed = self.ctx.options.seed;
+        let pixels = frame.len();
+        let trace_light = self.filter.needs_light_path();
+        let chunks: Vec<Chunk> = (0..pixels)
+            .into_par_iter()
+            .step_by(CHUNK)
+            .map(|start| {
+                let mut stats = IterationStats::default();
+                let mut splats = Vec::new();
+                let mut light_path = Vec::new();
+                let colors = (start..(start + CHUNK).min(pixels))
+                    .map(|pixel| {
+                        if trace_light {
+                            let mut rng =
+                                Rng::for_sample(seed, iteration, pixel as u64, Stream::Light);
+                            self.trace_light_path(
+                                &mut rng,
+                                &mut light_path,
+                                &mut splats,
+                                &mut stats,
+                            );
+                        }
+                        let mut rng = Rng::for_sample(seed, iteration, pixel as u64, Stream::Eye);
+                        self.trace_eye_path(&mut rng, pixel, &light_path, &mut stats)
+                    })
+                    .collect();
+                Chunk {
+                    colors,
+                    splats,
+                    stats,
+                }
+            })
+            .collect();
+        let mut stats = IterationStats::default();
+        let mut start = 0;
+        for chunk in &chunks {
+            for (offset, color) in chunk.colors.iter().enumerate() {
+                add_sample(
+                    &mut frame[start + offset],
+                    *color,
+                    &mut stats.dropped_samples,
+                );
+            }
+            start += chunk.colors.len();
+            stats.rays += chunk.stats.rays;
+        }
+        for chunk in &chunks {
+            for &(pixel, value) in &chunk.splats {
+                add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
+            }
+        }
+        stats
+    }
+}

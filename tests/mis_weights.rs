@@ -1,0 +1,570 @@
+//! The MIS weights of all techniques that can sample one fixed full path sum to 1.
+//!
+//! Paths of 2 to 8 segments are generated in the shipped scenes (diffuse, Phong, mirror and
+//! glass vertices; area, point, directional and sky lights) by a random walk from the camera
+//! closed by a light sample. For every way of splitting such a path into a light and an eye
+//! sub-path, the sub-paths' MIS quantities are built with the library's recursions
+//! (`BptVertex`, 000 eqs. (2.50)-(2.51); `VcmWeights`, 001 eqs. (31)-(47)) from the pdfs the
+//! BSDFs, lights and camera give along the path, and each technique's weight is taken from the
+//! functions the integrators call. The BPT weights are also checked one by one against the
+//! power heuristic evaluated directly from products of area pdfs (000 eq. (2.47)).
+
+mod common;
+
+use glam::Vec3;
+use vmerge::bsdf::{Bsdf, TransportMode};
+use vmerge::integrator::mis::{self, BptStep, BptVertex, Power, VcmVertex, VcmWeights};
+use vmerge::sampling::{Rng, Stream};
+use vmerge::scene::{Camera, Scene};
+
+/// Pixels of the test camera: n_VC = n_VM.
+const PIXELS: u32 = 16;
+
+/// One vertex of a full path, light (index 0) to camera (index k).
+#[derive(Clone, Copy)]
+enum Vertex {
+    Light,
+    Surface {
+        position: Vec3,
+        ng: Vec3,
+        material: u32,
+        delta: bool,
+    },
+    Camera,
+}
+
+/// A full path with everything the weights need, in the light-to-camera order x_0..x_k.
+struct FullPath {
+    vertices: Vec<Vertex>,
+    /// Positions (the light point; for infinite lights a far point along the direction).
+    positions: Vec<Vec3>,
+    light: LightEnd,
+}
+
+/// The light end x_0 as light sampling saw it from x_1.
+#[derive(Clone, Copy)]
+struct LightEnd {
+    pick: f32,
+    /// Area pdf of the point (solid angle for the sky, 1 for delta lights), without the pick.
+    pdf_a: f32,
+    direct_pdf_w: f32,
+    emission_pdf_w: f32,
+    cos_at_light: f32,
+    /// Unit direction from x_1 to the light.
+    dir_to_light: Vec3,
+    distance: f32,
+    infinite: bool,
+    delta: bool,
+}
+
+struct Setup<'a> {
+    scene: &'a Scene,
+    camera: Camera,
+}
+
+impl Setup<'_> {
+    fn n(&self) -> f32 {
+        self.camera.pixel_count() as f32
+    }
+
+    /// A random path of `k` segments, or `None` when the walk fails (retry).
+    fn random_path(&self, k: usize, rng: &mut Rng) -> Option<FullPath> {
+        let [x, y] = [
+            rng.next_f32() * PIXELS as f32,
+            rng.next_f32() * PIXELS as f32,
+        ];
+        let mut ray = self.camera.generate_ray(x, y);
+        // Eye walk: x_k = camera, then x_{k-1} .. x_1.
+        let mut eye = Vec::new();
+        loop {
+            let hit = self.scene.intersect(&ray)?;
+            let kind = &self.scene.material(hit.material).kind;
+            let wo = -ray.dir.normalize();
+            let bsdf = Bsdf::new(kind, hit.ng, wo, TransportMode::Radiance)?;
+            eye.push(Vertex::Surface {
+                position: hit.position,
+                ng: hit.ng,
+                material: hit.material,
+                delta: bsdf.is_delta(),
+            });
+            if eye.len() == k - 1 {
+                if bsdf.is_delta() {
+                    return None;
+                }
+                break;
+            }
+            let s = bsdf.sample([rng.next_f32(), rng.next_f32(), rng.next_f32()])?;
+            ray = vmerge::accel::Ray::spawn(hit.position, hit.ng, s.wi);
+        }
+        let Vertex::Surface { position, ng, .. } = eye[k - 2] else {
+            unreachable!()
+        };
+        let lights = &self.scene.lights;
+        let (index, pick) = lights.pick(rng.next_f32())?;
+        let light = lights.get(index);
+        let il = light.illuminate(position, rng.next_2d())?;
+        let shadow = if !il.distance.is_finite() {
+            vmerge::accel::Ray::spawn(position, ng, il.dir_to_light)
+        } else if light.is_delta() {
+            vmerge::accel::Ray::spawn_to(position, ng, il.position)
+        } else {
+            vmerge::accel::Ray::spawn_between(position, ng, il.position, il.normal)
+        };
+        if self.scene.occluded(&shadow) {
+            return None;
+        }
+        let infinite = !il.distance.is_finite();
+        let pdf_a = if light.is_delta() {
+            1.0
+        } else if infinite {
+            il.direct_pdf_w
+        } else {
+            il.direct_pdf_w * il.cos_at_light / (il.distance * il.distance)
+        };
+        let mut vertices = vec![Vertex::Light];
+        vertices.extend(eye.iter().rev().copied());
+        vertices.push(Vertex::Camera);
+        let mut positions = vec![if infinite {
+            position + il.dir_to_light * 1e6
+        } else {
+            il.position
+        }];
+        positions.extend(eye.iter().rev().map(|v| match v {
+            Vertex::Surface { position, .. } => *position,
+            _ => unreachable!(),
+        }));
+        positions.push(self.camera.position);
+        Some(FullPath {
+            vertices,
+            positions,
+            light: LightEnd {
+                pick,
+                pdf_a,
+                direct_pdf_w: il.direct_pdf_w,
+                emission_pdf_w: il.emission_pdf_w,
+                cos_at_light: il.cos_at_light,
+                dir_to_light: il.dir_to_light,
+                distance: il.distance,
+                infinite,
+                delta: light.is_delta(),
+            },
+        })
+    }
+}
+
+/// Pdfs and geometry of a full path, evaluated once.
+struct PathPdfs {
+    k: usize,
+    /// Solid-angle pdf at x_i of sampling the direction to x_{i+1} (light side; delta: 1).
+    light_w: Vec<f32>,
+    /// Solid-angle pdf at x_i of sampling the direction to x_{i-1} (eye side; delta: 1).
+    eye_w: Vec<f32>,
+    /// |cos| at x_i towards x_{i+1} and towards x_{i-1}.
+    cos_next: Vec<f32>,
+    cos_prev: Vec<f32>,
+    /// Squared distance of segment (x_i, x_{i+1}).
+    dist2: Vec<f32>,
+    /// Area pdf of x_i sampled from the light side / the eye side.
+    light_a: Vec<f32>,
+    eye_a: Vec<f32>,
+    connectable: Vec<bool>,
+    /// The camera's per-pixel solid-angle pdf of the direction to x_{k-1}.
+    camera_pdf_w: f32,
+}
+
+fn evaluate(setup: &Setup, path: &FullPath) -> PathPdfs {
+    let k = path.vertices.len() - 1;
+    let p = &path.positions;
+    let l = path.light;
+    let dir = |from: usize, to: usize| {
+        if from == 0 && l.infinite {
+            -l.dir_to_light
+        } else if to == 0 && l.infinite {
+            l.dir_to_light
+        } else {
+            (p[to] - p[from]).normalize()
+        }
+    };
+    let mut dist2 = vec![0.0; k];
+    for (i, d) in dist2.iter_mut().enumerate() {
+        *d = if i == 0 {
+            l.distance * l.distance
+        } else {
+            p[i].distance_squared(p[i + 1])
+        };
+    }
+    let (mut light_w, mut eye_w) = (vec![1.0f32; k + 1], vec![1.0f32; k + 1]);
+    let (mut cos_next, mut cos_prev) = (vec![1.0f32; k + 1], vec![1.0f32; k + 1]);
+    let mut connectable = vec![true; k + 1];
+    for i in 1..k {
+        let Vertex::Surface {
+            ng,
+            material,
+            delta,
+            ..
+        } = path.vertices[i]
+        else {
+            unreachable!()
+        };
+        let kind = &setup.scene.material(material).kind;
+        let (to_prev, to_next) = (dir(i, i - 1), dir(i, i + 1));
+        cos_next[i] = ng.dot(to_next).abs();
+        cos_prev[i] = ng.dot(to_prev).abs();
+        connectable[i] = !delta;
+        if !delta {
+            let light_bsdf = Bsdf::new(kind, ng, to_prev, TransportMode::Importance).unwrap();
+            let e = light_bsdf.eval(to_next);
+            light_w[i] = e.pdf_w;
+            eye_w[i] = e.rev_pdf_w;
+        }
+    }
+    // The light point: the emission's direction pdf; the cosine there.
+    light_w[0] = l.emission_pdf_w / l.pdf_a;
+    cos_next[0] = l.cos_at_light;
+    let camera_dir = (p[k - 1] - p[k]).normalize();
+    let camera_pdf_w = setup.camera.pdf_w(camera_dir);
+    eye_w[k] = camera_pdf_w / setup.n();
+    // Area pdfs: x_i from x_{i-1} (light side) and from x_{i+1} (eye side).
+    let g = |at: usize, from: usize| {
+        let segment = at.min(from);
+        let cos = if at < from {
+            cos_next[at]
+        } else {
+            cos_prev[at]
+        };
+        if segment == 0 && l.infinite {
+            // Directions at infinity: no distance term, and the sky point itself is a
+            // direction (no cosine).
+            if at == 0 {
+                1.0
+            } else {
+                cos
+            }
+        } else {
+            cos / dist2[segment]
+        }
+    };
+    let mut light_a = vec![0.0f32; k + 1];
+    let mut eye_a = vec![0.0f32; k + 1];
+    light_a[0] = l.pick * l.pdf_a;
+    for i in 1..k {
+        light_a[i] = light_w[i - 1] * g(i, i - 1);
+    }
+    eye_a[k] = 1.0;
+    for i in (0..k).rev() {
+        eye_a[i] = eye_w[i + 1] * g(i, i + 1);
+    }
+    PathPdfs {
+        k,
+        light_w,
+        eye_w,
+        cos_next,
+        cos_prev,
+        dist2,
+        light_a,
+        eye_a,
+        connectable,
+        camera_pdf_w,
+    }
+}
+
+/// Whether technique (s, t = k + 1 - s) can sample the path.
+fn valid(path: &FullPath, q: &PathPdfs, s: usize) -> bool {
+    if s == 0 {
+        !path.light.delta
+    } else {
+        q.connectable[s - 1] && q.connectable[s]
+    }
+}
+
+/// The BPT weights of techniques s = 0..=k through the library's recursion.
+fn bpt_weights(power: Power, setup: &Setup, path: &FullPath, q: &PathPdfs) -> Vec<f32> {
+    let k = q.k;
+    let l = path.light;
+    let g_fwd = |i: usize| q.light_a[i] / q.light_w[i - 1];
+    let g_back = |i: usize| q.eye_a[i] / q.eye_w[i + 1];
+    // Light sub-path y_i = x_i.
+    let mut light = vec![BptVertex::light_origin(power, l.pick * l.pdf_a, !l.delta)];
+    for i in 1..k {
+        let step = BptStep {
+            pdf_w: q.light_w[i - 1],
+            rev_pdf_w: if i >= 2 { q.eye_w[i - 1] } else { 1.0 },
+            g: g_fwd(i),
+            g_rev: g_back(i - 1),
+            prev_connectable: q.connectable[i - 1],
+        };
+        light.push(light[i - 1].next(power, &step));
+    }
+    // Eye sub-path z_j = x_{k-j}.
+    let mut eye = vec![BptVertex::default(); k + 1];
+    eye[k] = BptVertex::camera_origin();
+    for i in (0..k).rev() {
+        let step = BptStep {
+            pdf_w: q.eye_w[i + 1],
+            rev_pdf_w: if i + 2 < k { q.light_w[i + 1] } else { 1.0 },
+            g: g_back(i),
+            g_rev: if i + 1 == k { 1.0 } else { g_fwd(i + 1) },
+            prev_connectable: q.connectable[i + 1],
+        };
+        eye[i] = eye[i + 1].next(power, &step);
+    }
+    (0..=k)
+        .map(|s| {
+            if !valid(path, q, s) {
+                return 0.0;
+            }
+            if s == 0 {
+                mis::bpt_hit_light(power, &eye[0], l.pick * l.pdf_a, l.pick * l.emission_pdf_w)
+            } else if s == 1 {
+                mis::bpt_light_sample(
+                    power,
+                    &eye[1],
+                    q.eye_w[1],
+                    q.light_w[1],
+                    l.pick * l.direct_pdf_w,
+                    l.direct_pdf_w,
+                    l.emission_pdf_w,
+                    q.cos_prev[1],
+                    l.cos_at_light,
+                    l.delta,
+                )
+            } else if s == k {
+                let camera_pdf_a = q.eye_a[k - 1] * setup.n();
+                mis::bpt_to_camera(
+                    power,
+                    &light[k - 1],
+                    q.eye_w[k - 1],
+                    camera_pdf_a,
+                    setup.n(),
+                )
+            } else {
+                mis::bpt_connect(
+                    power,
+                    &light[s - 1],
+                    &eye[s],
+                    q.eye_w[s - 1],
+                    q.light_w[s],
+                    q.eye_a[s - 1],
+                    q.light_a[s],
+                )
+            }
+        })
+        .collect()
+}
+
+/// The power heuristic straight from 000 eq. (2.47): p_s = prod of the light side's area pdfs
+/// of x_0..x_{s-1} times the eye side's of x_s..x_k.
+fn direct_weights(power: Power, path: &FullPath, q: &PathPdfs) -> Vec<f64> {
+    let k = q.k;
+    let pdfs: Vec<f64> = (0..=k)
+        .map(|s| {
+            if !valid(path, q, s) {
+                return 0.0;
+            }
+            let light: f64 = q.light_a[..s].iter().map(|&p| p as f64).product();
+            let eye: f64 = q.eye_a[s..].iter().map(|&p| p as f64).product();
+            (light * eye).powf(power.0 as f64)
+        })
+        .collect();
+    let sum: f64 = pdfs.iter().sum();
+    pdfs.iter().map(|p| p / sum).collect()
+}
+
+/// The VCM weights of the connection techniques s = 0..=k and the merges at x_1..x_{k-1}.
+fn vcm_weights(w: &VcmWeights, path: &FullPath, q: &PathPdfs) -> (Vec<f32>, Vec<f32>) {
+    let k = q.k;
+    let l = path.light;
+    // Light sub-path, as vcm.rs traces it: arrive at x_i, store, scatter towards x_{i+1}.
+    let mut light = vec![VcmVertex::default(); k];
+    let mut state = w.light_origin(
+        l.pick * l.pdf_a,
+        l.pick * l.emission_pdf_w,
+        if l.infinite { 1.0 } else { l.cos_at_light },
+        l.delta,
+    );
+    #[allow(clippy::needless_range_loop)] // i indexes three arrays of the path
+    for i in 1..k {
+        w.arrive(
+            &mut state,
+            q.dist2[i - 1].sqrt(),
+            q.cos_prev[i],
+            !(i == 1 && l.infinite),
+        );
+        light[i] = state;
+        if i + 1 < k {
+            let delta = !q.connectable[i];
+            w.scatter(&mut state, q.cos_next[i], q.light_w[i], q.eye_w[i], delta);
+        }
+    }
+    // Eye sub-path from the camera: arrive at x_i, store, scatter towards x_{i-1}.
+    let mut eye = vec![VcmVertex::default(); k + 1];
+    let mut state = w.camera_origin(q.camera_pdf_w);
+    for i in (1..k).rev() {
+        w.arrive(&mut state, q.dist2[i].sqrt(), q.cos_next[i], true);
+        eye[i] = state;
+        let delta = !q.connectable[i];
+        w.scatter(&mut state, q.cos_prev[i], q.eye_w[i], q.light_w[i], delta);
+    }
+    // Reaching the light: area lights add the last segment, the sky does not.
+    if !l.infinite {
+        w.arrive(&mut state, q.dist2[0].sqrt(), l.cos_at_light, true);
+    }
+    eye[0] = state;
+    let vc = (0..=k)
+        .map(|s| {
+            if !valid(path, q, s) {
+                return 0.0;
+            }
+            if s == 0 {
+                w.hit_light(&eye[0], l.pick * l.pdf_a, l.pick * l.emission_pdf_w)
+            } else if s == 1 {
+                w.light_sample(
+                    &eye[1],
+                    q.eye_w[1],
+                    q.light_w[1],
+                    l.pick * l.direct_pdf_w,
+                    l.direct_pdf_w,
+                    l.emission_pdf_w,
+                    q.cos_prev[1],
+                    l.cos_at_light,
+                    l.delta,
+                )
+            } else if s == k {
+                let camera_pdf_a = q.eye_a[k - 1] * w.light_paths;
+                w.to_camera(&light[k - 1], camera_pdf_a, q.eye_w[k - 1])
+            } else {
+                w.connect(
+                    &light[s - 1],
+                    &eye[s],
+                    q.eye_w[s - 1],
+                    q.light_w[s],
+                    q.light_a[s],
+                    q.eye_a[s - 1],
+                )
+            }
+        })
+        .collect();
+    // A merge at x_j: the light sub-path's vertex x_j meets the eye sub-path's; the eye BSDF
+    // is evaluated towards the light vertex's incoming direction.
+    let vm = (1..k)
+        .map(|j| {
+            if !q.connectable[j] {
+                return 0.0;
+            }
+            w.merge(&light[j], &eye[j], q.eye_w[j], q.light_w[j])
+        })
+        .collect();
+    (vc, vm)
+}
+
+fn paths(scene_name: &str, seed: u64, count_per_length: usize) -> (Scene, Vec<FullPath>) {
+    let scene = common::load(scene_name);
+    let desc = scene.camera(None).unwrap().clone();
+    let setup = Setup {
+        scene: &scene,
+        camera: Camera::new(&desc, PIXELS, PIXELS),
+    };
+    let mut rng = Rng::for_sample(seed, 0, 0, Stream::Eye);
+    let mut all = Vec::new();
+    for k in 2..=8 {
+        let mut found = 0;
+        let mut tries = 0;
+        while found < count_per_length {
+            tries += 1;
+            assert!(tries < 100_000, "{scene_name}: no paths of {k} segments");
+            if let Some(p) = setup.random_path(k, &mut rng) {
+                all.push(p);
+                found += 1;
+            }
+        }
+    }
+    (scene, all)
+}
+
+/// Checks every path of a scene; returns (paths with a specular vertex, paths with merges).
+fn check_scene(name: &str) -> (usize, usize) {
+    let (scene, paths) = paths(name, 7, 40);
+    let desc = scene.camera(None).unwrap().clone();
+    let setup = Setup {
+        scene: &scene,
+        camera: Camera::new(&desc, PIXELS, PIXELS),
+    };
+    let (mut specular, mut merged) = (0, 0);
+    for path in &paths {
+        let q = evaluate(&setup, path);
+        // A path the BSDFs cannot scatter along (light behind a surface) has no techniques.
+        if (1..q.k).any(|i| q.connectable[i] && (q.light_w[i] <= 0.0 || q.eye_w[i] <= 0.0)) {
+            continue;
+        }
+        if q.connectable.iter().any(|c| !c) {
+            specular += 1;
+        }
+        for beta in [1.0, 2.0] {
+            let power = Power(beta);
+            let bpt = bpt_weights(power, &setup, path, &q);
+            let direct = direct_weights(power, path, &q);
+            let sum: f32 = bpt.iter().sum();
+            assert!(
+                (sum - 1.0).abs() < 1e-4,
+                "{name}: BPT weights of a {}-segment path sum to {sum} (beta {beta}): {bpt:?}",
+                q.k
+            );
+            for (s, (&w, &d)) in bpt.iter().zip(&direct).enumerate() {
+                assert!(
+                    (w as f64 - d).abs() < 1e-4,
+                    "{name}: technique s = {s} of a {}-segment path: recursive weight {w}, \
+                     direct {d} (beta {beta})",
+                    q.k
+                );
+            }
+            for radius in [1e-3, 1e-2, 0.1] {
+                let w = VcmWeights::new(power, radius, setup.n(), true, true);
+                let (vc, vm) = vcm_weights(&w, path, &q);
+                let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
+                assert!(
+                    (sum - 1.0).abs() < 1e-4,
+                    "{name}: VCM weights of a {}-segment path sum to {sum} (beta {beta}, \
+                     r {radius}): VC {vc:?} VM {vm:?}",
+                    q.k
+                );
+                if vm.iter().any(|&m| m > 1e-3) {
+                    merged += 1;
+                }
+            }
+            // VC alone is BPT: the two recursions give the same weights.
+            let w = VcmWeights::new(power, 0.01, setup.n(), true, false);
+            let (vc, _) = vcm_weights(&w, path, &q);
+            for (s, (a, b)) in vc.iter().zip(&bpt).enumerate() {
+                assert!(
+                    (a - b).abs() < 1e-4,
+                    "{name}: s = {s}: VCM without merging {a}, BPT {b}"
+                );
+            }
+        }
+    }
+    (specular, merged)
+}
+
+#[test]
+fn weights_sum_to_one_in_the_furnace() {
+    check_scene("furnace");
+}
+
+#[test]
+fn weights_sum_to_one_with_phong() {
+    let (_, merged) = check_scene("cornell-glossy");
+    assert!(merged > 0, "no path gave a merge any weight");
+}
+
+#[test]
+fn weights_sum_to_one_with_mirror_and_glass() {
+    let (specular, _) = check_scene("cornell-spheres");
+    assert!(specular > 20, "only {specular} paths had a specular vertex");
+}
+
+#[test]
+fn weights_sum_to_one_with_point_directional_and_sky_lights() {
+    for name in ["cornell-point", "cornell-sun", "cornell-sky", "caustic"] {
+        check_scene(name);
+    }
+}
