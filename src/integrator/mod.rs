@@ -6,6 +6,7 @@ use crate::render::RenderOptions;
 use crate::scene::{Camera, Scene};
 
 pub mod pt;
+pub mod upg;
 pub mod vcm;
 
 /// The rendering techniques.
