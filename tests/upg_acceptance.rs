@@ -210,32 +210,165 @@ fn configs() -> Vec<Config> {
         c
     };
     vec![
-        cfg("lambert, normal target", lambert(), 30.0, (0.0, 0.0), 20.0, 0.0),
-        cfg("lambert, oblique", lambert(), 30.0, (50.0, 40.0), 20.0, 60.0),
-        cfg("lambert, grazing disc", lambert(), 30.0, (30.0, 0.0), 10.0, 85.0),
-        cfg("lambert, target at horizon", lambert(), 30.0, (88.0, 90.0), 10.0, 20.0),
+        cfg(
+            "lambert, normal target",
+            lambert(),
+            30.0,
+            (0.0, 0.0),
+            20.0,
+            0.0,
+        ),
+        cfg(
+            "lambert, oblique",
+            lambert(),
+            30.0,
+            (50.0, 40.0),
+            20.0,
+            60.0,
+        ),
+        cfg(
+            "lambert, grazing disc",
+            lambert(),
+            30.0,
+            (30.0, 0.0),
+            10.0,
+            85.0,
+        ),
+        cfg(
+            "lambert, target at horizon",
+            lambert(),
+            30.0,
+            (88.0, 90.0),
+            10.0,
+            20.0,
+        ),
         cfg("lambert, d = 3r", lambert(), 60.0, (40.0, 0.0), 3.0, 30.0),
         cfg("lambert, d = 1.5r", lambert(), 30.0, (20.0, 0.0), 1.5, 10.0),
         cfg("lambert, d = 0.5r", lambert(), 30.0, (0.0, 0.0), 0.5, 0.0),
-        cfg("phong 1", phong(0.0, 0.8, 1.0), 45.0, (45.0, 180.0), 20.0, 30.0),
-        cfg("phong 10", phong(0.0, 0.8, 10.0), 45.0, (45.0, 180.0), 20.0, 30.0),
-        cfg("phong 100", phong(0.0, 0.8, 100.0), 45.0, (45.0, 180.0), 20.0, 30.0),
-        cfg("phong 1000", phong(0.0, 0.8, 1000.0), 45.0, (45.0, 180.0), 20.0, 30.0),
-        cfg("phong 1, wo normal", phong(0.0, 0.8, 1.0), 0.0, (30.0, 0.0), 5.0, 0.0),
-        cfg("phong 100, wo 10", phong(0.0, 0.8, 100.0), 10.0, (12.0, 170.0), 30.0, 0.0),
-        cfg("phong 100, off peak", phong(0.0, 0.8, 100.0), 45.0, (55.0, 180.0), 20.0, 0.0),
-        cfg("phong 1000, wo 70", phong(0.0, 0.8, 1000.0), 70.0, (71.0, 180.0), 50.0, 45.0),
-        cfg("phong 10, grazing", phong(0.0, 0.8, 10.0), 80.0, (84.0, 180.0), 10.0, 60.0),
-        cfg("phong 1000, d = 4r", phong(0.0, 0.8, 1000.0), 30.0, (32.0, 180.0), 4.0, 75.0),
-        cfg("mixture 10", phong(0.3, 0.5, 10.0), 30.0, (30.0, 180.0), 20.0, 20.0),
-        cfg("mixture 100", phong(0.3, 0.5, 100.0), 60.0, (50.0, 170.0), 10.0, 40.0),
-        cfg("mixture 1000, d = 3r", phong(0.3, 0.5, 1000.0), 45.0, (45.0, 180.0), 3.0, 10.0),
+        cfg(
+            "phong 1",
+            phong(0.0, 0.8, 1.0),
+            45.0,
+            (45.0, 180.0),
+            20.0,
+            30.0,
+        ),
+        cfg(
+            "phong 10",
+            phong(0.0, 0.8, 10.0),
+            45.0,
+            (45.0, 180.0),
+            20.0,
+            30.0,
+        ),
+        cfg(
+            "phong 100",
+            phong(0.0, 0.8, 100.0),
+            45.0,
+            (45.0, 180.0),
+            20.0,
+            30.0,
+        ),
+        cfg(
+            "phong 1000",
+            phong(0.0, 0.8, 1000.0),
+            45.0,
+            (45.0, 180.0),
+            20.0,
+            30.0,
+        ),
+        cfg(
+            "phong 1, wo normal",
+            phong(0.0, 0.8, 1.0),
+            0.0,
+            (30.0, 0.0),
+            5.0,
+            0.0,
+        ),
+        cfg(
+            "phong 100, wo 10",
+            phong(0.0, 0.8, 100.0),
+            10.0,
+            (12.0, 170.0),
+            30.0,
+            0.0,
+        ),
+        cfg(
+            "phong 100, off peak",
+            phong(0.0, 0.8, 100.0),
+            45.0,
+            (55.0, 180.0),
+            20.0,
+            0.0,
+        ),
+        cfg(
+            "phong 1000, wo 70",
+            phong(0.0, 0.8, 1000.0),
+            70.0,
+            (71.0, 180.0),
+            50.0,
+            45.0,
+        ),
+        cfg(
+            "phong 10, grazing",
+            phong(0.0, 0.8, 10.0),
+            80.0,
+            (84.0, 180.0),
+            10.0,
+            60.0,
+        ),
+        cfg(
+            "phong 1000, d = 4r",
+            phong(0.0, 0.8, 1000.0),
+            30.0,
+            (32.0, 180.0),
+            4.0,
+            75.0,
+        ),
+        cfg(
+            "mixture 10",
+            phong(0.3, 0.5, 10.0),
+            30.0,
+            (30.0, 180.0),
+            20.0,
+            20.0,
+        ),
+        cfg(
+            "mixture 100",
+            phong(0.3, 0.5, 100.0),
+            60.0,
+            (50.0, 170.0),
+            10.0,
+            40.0,
+        ),
+        cfg(
+            "mixture 1000, d = 3r",
+            phong(0.3, 0.5, 1000.0),
+            45.0,
+            (45.0, 180.0),
+            3.0,
+            10.0,
+        ),
         occluded(
-            cfg("lambert, occluded", lambert(), 30.0, (30.0, 0.0), 10.0, 20.0),
+            cfg(
+                "lambert, occluded",
+                lambert(),
+                30.0,
+                (30.0, 0.0),
+                10.0,
+                20.0,
+            ),
             0.3,
         ),
         occluded(
-            cfg("phong 100, occluded", phong(0.0, 0.8, 100.0), 45.0, (45.0, 180.0), 20.0, 30.0),
+            cfg(
+                "phong 100, occluded",
+                phong(0.0, 0.8, 100.0),
+                45.0,
+                (45.0, 180.0),
+                20.0,
+                30.0,
+            ),
             -0.2,
         ),
     ]
@@ -261,14 +394,8 @@ fn mean_estimate_is_the_reciprocal_acceptance_probability() {
         );
         let expected = 1.0 / exact;
         let tracer = planes(c, &s);
-        let bound = AngularBound::new(
-            Vec3::ZERO,
-            Vec3::Z,
-            &b,
-            s.target.as_vec3(),
-            RADIUS as f32,
-        )
-        .expect("non-delta BSDF");
+        let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
+            .expect("non-delta BSDF");
         let mut rng = Rng::for_sample(11, index as u64, 0, Stream::Tentative);
         let (mut sum, mut sum2, mut trials) = (0.0f64, 0.0f64, 0u64);
         for _ in 0..ESTIMATES {
@@ -305,9 +432,8 @@ fn packets_and_single_rays_give_the_same_estimates() {
         let s = setup(c);
         let b = bsdf(&c.kind, c.wo_deg);
         let tracer = planes(c, &s);
-        let bound =
-            AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
-                .expect("non-delta BSDF");
+        let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
+            .expect("non-delta BSDF");
         // A small cap not a multiple of 8 exercises the last, partial packet.
         for max_trials in [1_000_000, 13] {
             for seed in 0..200 {
