@@ -160,7 +160,9 @@ impl Component {
             (0.0, 0.0, 2.0 * PI)
         } else {
             // Half-width of the azimuths of a cone of half-angle gamma whose axis is at polar
-            // angle theta_d > gamma, seen from the lobe's axis.
+            // angle theta_d > gamma, seen from the lobe's axis. When the cone holds the
+            // antipode too (sin(gamma) >= sin(theta_d)), its part in the lobe's hemisphere
+            // still lies within 90 degrees of phi_d, where the ratio is clamped.
             let dphi = (gamma.sin() / sin_theta_d).min(1.0).asin();
             (theta0, ty.atan2(tx) - dphi, 2.0 * dphi)
         };
@@ -405,9 +407,11 @@ pub struct Estimator {
 }
 
 impl Default for Estimator {
+    /// Single rays: a merge takes about 3 trials, so packets of 8 spend most lanes in vain
+    /// (README, "UPG tentative rays").
     fn default() -> Self {
         Estimator {
-            packet: PacketWidth::Eight,
+            packet: PacketWidth::One,
             max_trials: DEFAULT_MAX_TRIALS,
         }
     }
