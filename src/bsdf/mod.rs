@@ -89,6 +89,46 @@ pub struct BsdfSample {
     pub delta: bool,
 }
 
+/// The density of a non-delta lobe around its axis, on the hemisphere the axis points to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LobeShape {
+    /// cos(theta) / pi (lambert, Phong's diffuse part).
+    Cosine,
+    /// (n + 1) / (2 pi) cos^n(alpha) (Phong's glossy part).
+    PowerCosine { exponent: f32 },
+}
+
+/// One component of a BSDF's sampling mixture, in world space: what a sampler bounding the
+/// directions it may draw (UPG's tentative rays, 000 sec. 2.4.3) needs to know.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lobe {
+    /// Probability that [`Bsdf::sample`] draws from this component.
+    pub weight: f32,
+    /// Unit axis: the frame's `z` for [`LobeShape::Cosine`], the mirror direction of `wo` for
+    /// [`LobeShape::PowerCosine`].
+    pub axis: Vec3,
+    pub shape: LobeShape,
+}
+
+/// The components of a BSDF's sampling mixture with positive weight: at most two, none for a
+/// delta BSDF.
+#[derive(Clone, Copy, Debug)]
+pub struct Lobes {
+    items: [Lobe; 2],
+    len: usize,
+}
+
+impl Lobes {
+    pub fn as_slice(&self) -> &[Lobe] {
+        &self.items[..self.len]
+    }
+
+    fn push(&mut self, lobe: Lobe) {
+        self.items[self.len] = lobe;
+        self.len += 1;
+    }
+}
+
 /// A BSDF at one vertex, for one fixed `wo`.
 #[derive(Clone, Debug)]
 pub struct Bsdf<'a> {
@@ -144,6 +184,44 @@ impl<'a> Bsdf<'a> {
             wi: self.frame.to_world(local.wi),
             ..local
         })
+    }
+
+    /// The sampling mixture of a non-delta BSDF: [`Bsdf::sample`] picks a component by its
+    /// weight and draws from its density; a direction below the surface (`frame().z`) is
+    /// rejected (`None`). Empty for mirror and glass.
+    pub fn lobes(&self) -> Lobes {
+        let unused = Lobe {
+            weight: 0.0,
+            axis: self.frame.z,
+            shape: LobeShape::Cosine,
+        };
+        let mut lobes = Lobes {
+            items: [unused; 2],
+            len: 0,
+        };
+        let diffuse = |weight| Lobe {
+            weight,
+            axis: self.frame.z,
+            shape: LobeShape::Cosine,
+        };
+        match *self.kind {
+            MaterialKind::Lambert { .. } => lobes.push(diffuse(1.0)),
+            MaterialKind::Phong { kd, ks, exponent } => {
+                let pd = phong::Phong::new(kd, ks, exponent).diffuse_probability;
+                if pd > 0.0 {
+                    lobes.push(diffuse(pd));
+                }
+                if pd < 1.0 {
+                    lobes.push(Lobe {
+                        weight: 1.0 - pd,
+                        axis: self.frame.to_world(reflect_local(self.wo_local)),
+                        shape: LobeShape::PowerCosine { exponent },
+                    });
+                }
+            }
+            MaterialKind::Mirror { .. } | MaterialKind::Glass { .. } => {}
+        }
+        lobes
     }
 
     /// True when every lobe is a delta (mirror, glass): no connection or merge can use it.

@@ -15,7 +15,7 @@ pub(super) struct Phong {
     ks: Rgb,
     exponent: f32,
     /// Probability of sampling the diffuse lobe.
-    diffuse_probability: f32,
+    pub(super) diffuse_probability: f32,
 }
 
 impl Phong {

@@ -8,6 +8,7 @@ use crate::scene::{Camera, Scene};
 pub mod bpt;
 pub mod mis;
 pub mod pt;
+pub mod upg;
 pub mod vcm;
 
 /// The rendering techniques.

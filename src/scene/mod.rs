@@ -1,7 +1,7 @@
 //! Scenes: the TOML scene file with its OBJ/MTL meshes and spheres, validated and turned into
 //! geometry for the ray queries, materials, lights and cameras.
 
-use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray};
+use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, PACKET};
 use crate::bsdf::Material;
 use crate::color::Rgb;
 use crate::light::Lights;
@@ -140,6 +140,12 @@ impl Scene {
         self.accel
             .intersect(ray)
             .map(|hit| self.surface_hit(ray, hit))
+    }
+
+    /// Closest backend hits of up to 8 rays, bit `i` of `active` selecting `rays[i]` (see
+    /// [`Accel::intersect8`]); [`Scene::surface_hit`] turns a hit into a surface point.
+    pub fn intersect8(&self, rays: &[Ray; PACKET], active: u8, hits: &mut [Option<Hit>; PACKET]) {
+        self.accel.intersect8(rays, active, hits)
     }
 
     /// Turns a backend hit into a surface point with its material and light.

@@ -1,0 +1,502 @@
+//! The reciprocal acceptance probability 1/p_acc of a merge, estimated without bias.
+//!
+//! p_acc is the probability that a direction sampled from the BSDF at an origin vertex, traced
+//! to its first hit, lands within `r` of a target point (000 eqs. 2.56-2.57). The number N of
+//! such Bernoulli trials up to the first success has mean 1/p_acc (000 eqs. 2.61-2.62). Trials
+//! are drawn only inside an angular bound around the cone that the r-sphere subtends; if the
+//! bound holds BSDF probability P, the bounded count has mean P/p_acc, so N/P estimates 1/p_acc
+//! (000 eqs. 2.63-2.65).
+//!
+//! The bound of each lobe is an interval of polar and azimuthal angles in the lobe's own frame,
+//! where its pdf factorises: P is closed form and sampling inside the bound is exact by
+//! inverting the two CDFs.
+//!
+//! For a mixture (Phong's diffuse and glossy parts, weights w_c, bounds B_c with mass p_c) a
+//! trial picks component c with probability w_c p_c / P, P = sum_c w_c p_c, and draws from
+//! pdf_c / p_c on B_c. Its density at w is (1/P) sum_c w_c pdf_c(w) [w in B_c]. Every direction
+//! that can succeed lies in the cone, hence in every B_c where pdf_c is not zero, so there the
+//! density is pdf(w) / P: a trial succeeds with probability p_acc / P and E[N / P] = 1/p_acc.
+
+use crate::accel::{offset_ray_origin, Ray, PACKET};
+use crate::bsdf::{Bsdf, Lobe, LobeShape};
+use crate::sampling::{cosine_hemisphere, power_cosine, Rng};
+use crate::scene::Scene;
+use glam::{DVec3, Vec3};
+use std::f64::consts::{FRAC_PI_2, PI};
+use thiserror::Error;
+
+/// The trial cap the command line uses unless told otherwise.
+pub const DEFAULT_MAX_TRIALS: u32 = 10_000;
+
+/// A bound holding at least this share of a lobe's probability saves too few trials to be
+/// worth its own sampler; the whole lobe is sampled instead.
+const WHOLE_LOBE_SHARE: f64 = 0.9;
+
+/// Closest-hit distances for tentative rays: the scene in rendering, analytic geometry in tests.
+pub trait TentativeTracer {
+    /// Distance `t` (in units of `ray.dir`) of the closest hit in `[ray.tmin, ray.tmax]`.
+    fn closest(&self, ray: &Ray) -> Option<f32>;
+
+    /// [`TentativeTracer::closest`] of up to 8 rays; bit `i` of `active` selects `rays[i]`,
+    /// inactive lanes answer `None`.
+    fn closest8(&self, rays: &[Ray; PACKET], active: u8) -> [Option<f32>; PACKET];
+}
+
+impl TentativeTracer for Scene {
+    fn closest(&self, ray: &Ray) -> Option<f32> {
+        self.accel.intersect(ray).map(|hit| hit.t)
+    }
+
+    fn closest8(&self, rays: &[Ray; PACKET], active: u8) -> [Option<f32>; PACKET] {
+        let mut hits = [None; PACKET];
+        self.intersect8(rays, active, &mut hits);
+        hits.map(|hit| hit.map(|hit| hit.t))
+    }
+}
+
+#[derive(Debug, Error, Clone, PartialEq)]
+pub enum AcceptanceError {
+    #[error("a delta BSDF (mirror, glass) cannot be merged through")]
+    DeltaBsdf,
+    #[error("the merge radius must be positive and finite, got {0}")]
+    InvalidRadius(f32),
+    #[error("tentative rays are traced 1 or 8 at a time, not {0}")]
+    PacketWidth(u32),
+}
+
+/// How many tentative rays are traced together.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PacketWidth {
+    One,
+    Eight,
+}
+
+impl TryFrom<u32> for PacketWidth {
+    type Error = AcceptanceError;
+
+    fn try_from(width: u32) -> Result<Self, Self::Error> {
+        match width {
+            1 => Ok(PacketWidth::One),
+            8 => Ok(PacketWidth::Eight),
+            _ => Err(AcceptanceError::PacketWidth(width)),
+        }
+    }
+}
+
+/// The polar part of a component's bound.
+#[derive(Clone, Copy, Debug)]
+enum Polar {
+    /// The whole lobe, drawn with the warp the BSDF itself uses.
+    Whole,
+    /// Cosine lobe: its polar CDF sin^2(theta) is uniform in `[lo, lo + span]`.
+    SinSquared { lo: f64, span: f64 },
+    /// Power-cosine lobe: 1 - cos^(n+1)(alpha) is its polar CDF, so cos^(n+1)(alpha) is uniform
+    /// in `[hi - span, hi]`.
+    PowerCosine { hi: f64, span: f64, inv_n1: f64 },
+}
+
+/// One mixture component with its bound, in a frame around its axis.
+#[derive(Clone, Copy, Debug)]
+struct Component {
+    x: DVec3,
+    y: DVec3,
+    z: DVec3,
+    shape: LobeShape,
+    polar: Polar,
+    /// Azimuths `[phi0, phi0 + phi_span]`.
+    phi0: f64,
+    phi_span: f64,
+    /// w_c p_b,c, and the running sum of it up to and including this component.
+    mass: f64,
+    cdf: f64,
+}
+
+/// An orthonormal basis around the unit `z` in f64 (the construction of `Frame::from_z`).
+fn basis(z: DVec3) -> (DVec3, DVec3) {
+    let sign = 1.0f64.copysign(z.z);
+    let a = -1.0 / (sign + z.z);
+    let b = z.x * z.y * a;
+    (
+        DVec3::new(1.0 + sign * z.x * z.x * a, sign * b, -sign * z.x),
+        DVec3::new(b, sign + z.y * z.y * a, -z.y),
+    )
+}
+
+impl Component {
+    /// The bound of `lobe` around the cone from `origin` to the r-sphere around `target`, and
+    /// its probability p_b (000 eq. 2.64).
+    fn new(lobe: &Lobe, origin: DVec3, target: DVec3, radius: f64) -> (Component, f64) {
+        let z = lobe.axis.as_dvec3().normalize();
+        let (x, y) = basis(z);
+        let whole = Component {
+            x,
+            y,
+            z,
+            shape: lobe.shape,
+            polar: Polar::Whole,
+            phi0: 0.0,
+            phi_span: 2.0 * PI,
+            mass: 0.0,
+            cdf: 0.0,
+        };
+        let to_target = target - origin;
+        let d = to_target.length();
+        if d <= radius {
+            return (whole, 1.0);
+        }
+        let t = to_target / d;
+        let (tx, ty, tz) = (t.dot(x), t.dot(y), t.dot(z));
+        let sin_theta_d = (tx * tx + ty * ty).sqrt();
+        let theta_d = sin_theta_d.atan2(tz);
+        let gamma = (radius / d).asin();
+        // Both lobes live on the hemisphere around their axis.
+        let theta0 = theta_d - gamma;
+        let theta1 = (theta_d + gamma).min(FRAC_PI_2);
+        if theta0 >= FRAC_PI_2 {
+            return (whole, 0.0);
+        }
+        let (theta0, phi0, phi_span) = if theta0 <= 0.0 {
+            // The cone holds the axis: every azimuth.
+            (0.0, 0.0, 2.0 * PI)
+        } else {
+            // Half-width of the azimuths of a cone of half-angle gamma whose axis is at polar
+            // angle theta_d > gamma, seen from the lobe's axis. When the cone holds the
+            // antipode too (sin(gamma) >= sin(theta_d)), its part in the lobe's hemisphere
+            // still lies within 90 degrees of phi_d, where the ratio is clamped.
+            let dphi = (gamma.sin() / sin_theta_d).min(1.0).asin();
+            (theta0, ty.atan2(tx) - dphi, 2.0 * dphi)
+        };
+        let (polar, mass) = match lobe.shape {
+            LobeShape::Cosine => {
+                // sin^2(t1) - sin^2(t0) without cancellation for narrow intervals.
+                let span = (theta1 + theta0).sin() * (theta1 - theta0).sin();
+                let lo = theta0.sin().powi(2);
+                (Polar::SinSquared { lo, span }, span)
+            }
+            LobeShape::PowerCosine { exponent } => {
+                let n1 = exponent as f64 + 1.0;
+                let hi = theta0.cos().powf(n1);
+                let span = hi - theta1.cos().max(0.0).powf(n1);
+                let polar = Polar::PowerCosine {
+                    hi,
+                    span,
+                    inv_n1: 1.0 / n1,
+                };
+                (polar, span)
+            }
+        };
+        let p_b = mass * phi_span / (2.0 * PI);
+        if p_b >= WHOLE_LOBE_SHARE {
+            return (whole, 1.0);
+        }
+        let bounded = Component {
+            polar,
+            phi0,
+            phi_span,
+            ..whole
+        };
+        (bounded, p_b.max(0.0))
+    }
+
+    /// A direction from the component's density restricted to its bound, with `u` uniform.
+    fn sample(&self, u: [f32; 2]) -> Vec3 {
+        let (cos_theta, sin_theta) = match self.polar {
+            Polar::Whole => {
+                let local = match self.shape {
+                    LobeShape::Cosine => cosine_hemisphere(u),
+                    LobeShape::PowerCosine { exponent } => power_cosine(u, exponent),
+                };
+                let w = self.x * local.x as f64 + self.y * local.y as f64 + self.z * local.z as f64;
+                return w.as_vec3();
+            }
+            Polar::SinSquared { lo, span } => {
+                let sin2 = (lo + u[0] as f64 * span).clamp(0.0, 1.0);
+                ((1.0 - sin2).sqrt(), sin2.sqrt())
+            }
+            Polar::PowerCosine { hi, span, inv_n1 } => {
+                let c = (hi - u[0] as f64 * span).max(0.0).powf(inv_n1).min(1.0);
+                (c, (1.0 - c * c).sqrt())
+            }
+        };
+        let phi = self.phi0 + u[1] as f64 * self.phi_span;
+        let w = self.x * (sin_theta * phi.cos())
+            + self.y * (sin_theta * phi.sin())
+            + self.z * cos_theta;
+        w.as_vec3()
+    }
+}
+
+/// Where tentative rays from one origin vertex towards one target may go: the angular bound
+/// (000 eqs. 2.63-2.64) of each lobe of the origin's BSDF, and the sampler inside it.
+#[derive(Clone, Debug)]
+pub struct AngularBound<'a> {
+    bsdf: Bsdf<'a>,
+    /// The ray origin, offset off the surface to the side the BSDF samples.
+    origin: Vec3,
+    target: Vec3,
+    radius: f32,
+    components: [Component; 2],
+    len: usize,
+    /// P = sum_c w_c p_b,c.
+    p_bound: f64,
+    /// Every component is whole: trials are exactly [`Bsdf::sample`].
+    whole: bool,
+}
+
+impl<'a> AngularBound<'a> {
+    /// The bound for merges at `target` with radius `radius` through the vertex at `position`
+    /// (geometric normal `ng`) whose BSDF, built for its fixed `wo`, is `bsdf`.
+    pub fn new(
+        position: Vec3,
+        ng: Vec3,
+        bsdf: &Bsdf<'a>,
+        target: Vec3,
+        radius: f32,
+    ) -> Result<Self, AcceptanceError> {
+        if !(radius > 0.0 && radius.is_finite()) {
+            return Err(AcceptanceError::InvalidRadius(radius));
+        }
+        let lobes = bsdf.lobes();
+        if lobes.as_slice().is_empty() {
+            return Err(AcceptanceError::DeltaBsdf);
+        }
+        // Every direction the BSDF keeps lies on the side of its frame's z, so this is the
+        // origin `Ray::spawn` gives each of them; the cone is taken from it.
+        let origin = offset_ray_origin(position, ng, bsdf.frame().z);
+        let mut components = [Component {
+            x: DVec3::X,
+            y: DVec3::Y,
+            z: DVec3::Z,
+            shape: LobeShape::Cosine,
+            polar: Polar::Whole,
+            phi0: 0.0,
+            phi_span: 0.0,
+            mass: 0.0,
+            cdf: 0.0,
+        }; 2];
+        let (mut p_bound, mut whole) = (0.0, true);
+        for (lobe, slot) in lobes.as_slice().iter().zip(components.iter_mut()) {
+            let (component, p_b) =
+                Component::new(lobe, origin.as_dvec3(), target.as_dvec3(), radius as f64);
+            whole &= matches!(component.polar, Polar::Whole) && p_b == 1.0;
+            let mass = lobe.weight as f64 * p_b;
+            p_bound += mass;
+            *slot = Component {
+                mass,
+                cdf: p_bound,
+                ..component
+            };
+        }
+        Ok(AngularBound {
+            bsdf: bsdf.clone(),
+            origin,
+            target,
+            radius,
+            components,
+            len: lobes.as_slice().len(),
+            p_bound: if whole { 1.0 } else { p_bound },
+            whole,
+        })
+    }
+
+    /// P: the probability that the BSDF samples a direction inside the bound. Zero when no
+    /// direction it samples can reach the r-sphere.
+    pub fn p_bound(&self) -> f64 {
+        self.p_bound
+    }
+
+    /// True when the bound is the whole BSDF (P = 1) and trials are drawn by [`Bsdf::sample`].
+    pub fn is_whole(&self) -> bool {
+        self.whole
+    }
+
+    /// The ray origin: the vertex offset off its surface on the side the BSDF samples.
+    pub fn origin(&self) -> Vec3 {
+        self.origin
+    }
+
+    /// A trial direction from the BSDF's density restricted to the bound and divided by P,
+    /// `u[0]` choosing the component; `None` where the BSDF would reject it (below the surface).
+    pub fn sample_direction(&self, u: [f32; 3]) -> Option<Vec3> {
+        if self.whole {
+            return self.bsdf.sample(u).map(|s| s.wi);
+        }
+        let pick = u[0] as f64 * self.p_bound;
+        let mut chosen = &self.components[0];
+        for c in self.components[..self.len].iter().filter(|c| c.mass > 0.0) {
+            chosen = c;
+            if pick < c.cdf {
+                break;
+            }
+        }
+        let component = chosen;
+        let w = component.sample([u[1], u[2]]);
+        (w.dot(self.bsdf.frame().z) > 0.0).then_some(w)
+    }
+
+    /// The tentative ray of a trial, its `tmax` where it leaves the r-sphere; `None` for a
+    /// failure known without tracing (rejected by the BSDF, or missing the sphere).
+    fn trial(&self, rng: &mut Rng) -> Option<Ray> {
+        // Three numbers per trial whatever happens, so packets and single rays see the same
+        // trial sequence.
+        let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+        let dir = self.sample_direction(u)?;
+        let o = (self.origin - self.target).as_dvec3();
+        let w = dir.as_dvec3();
+        let a = w.length_squared();
+        let half_b = o.dot(w);
+        let c = o.length_squared() - (self.radius as f64).powi(2);
+        let disc = half_b * half_b - a * c;
+        if disc < 0.0 {
+            return None;
+        }
+        let t_exit = (-half_b + disc.sqrt()) / a;
+        (t_exit > 0.0).then_some(Ray {
+            origin: self.origin,
+            dir,
+            tmin: 0.0,
+            tmax: t_exit as f32,
+        })
+    }
+
+    fn accepts(&self, ray: &Ray, t: Option<f32>) -> bool {
+        t.is_some_and(|t| (ray.at(t) - self.target).length_squared() <= self.radius * self.radius)
+    }
+}
+
+/// How an estimate ended.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Outcome {
+    /// N / P, an unbiased estimate of 1/p_acc (000 eq. 2.65).
+    Estimate(f32),
+    /// No success within the cap: the merge is dropped.
+    Capped,
+    /// P = 0: no direction the BSDF samples reaches the r-sphere.
+    Unreachable,
+}
+
+/// One estimate of 1/p_acc, with what it cost.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Estimate {
+    pub outcome: Outcome,
+    /// Trials counted: the index of the first success, or the cap.
+    pub trials: u32,
+    /// Rays traced; with packets this includes the lanes after the first success.
+    pub rays: u32,
+}
+
+impl Estimate {
+    pub fn inv_p_acc(&self) -> Option<f32> {
+        match self.outcome {
+            Outcome::Estimate(value) => Some(value),
+            Outcome::Capped | Outcome::Unreachable => None,
+        }
+    }
+
+    pub fn capped(&self) -> bool {
+        self.outcome == Outcome::Capped
+    }
+}
+
+/// The Bernoulli-trial estimator of 1/p_acc (000 eqs. 2.61-2.65).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Estimator {
+    pub packet: PacketWidth,
+    /// Trials after which the estimate gives up ([`Outcome::Capped`]).
+    pub max_trials: u32,
+}
+
+impl Default for Estimator {
+    /// Single rays: a merge takes about 3 trials, so packets of 8 spend most lanes in vain
+    /// (README, "UPG tentative rays").
+    fn default() -> Self {
+        Estimator {
+            packet: PacketWidth::One,
+            max_trials: DEFAULT_MAX_TRIALS,
+        }
+    }
+}
+
+impl Estimator {
+    /// Counts trials in `bound` up to the first success. Packets and single rays return the same
+    /// estimate for the same `rng`; packets draw the numbers of up to 7 trials more.
+    pub fn estimate<T: TentativeTracer + ?Sized>(
+        &self,
+        tracer: &T,
+        bound: &AngularBound,
+        rng: &mut Rng,
+    ) -> Estimate {
+        if bound.p_bound <= 0.0 {
+            return Estimate {
+                outcome: Outcome::Unreachable,
+                trials: 0,
+                rays: 0,
+            };
+        }
+        let (trials, rays) = match self.packet {
+            PacketWidth::One => self.single(tracer, bound, rng),
+            PacketWidth::Eight => self.packets(tracer, bound, rng),
+        };
+        let outcome = match trials {
+            Some(n) => Outcome::Estimate((n as f64 / bound.p_bound) as f32),
+            None => Outcome::Capped,
+        };
+        Estimate {
+            outcome,
+            trials: trials.unwrap_or(self.max_trials),
+            rays,
+        }
+    }
+
+    /// The index of the first success (or `None` when capped), and the rays traced.
+    fn single<T: TentativeTracer + ?Sized>(
+        &self,
+        tracer: &T,
+        bound: &AngularBound,
+        rng: &mut Rng,
+    ) -> (Option<u32>, u32) {
+        let mut rays = 0;
+        for n in 1..=self.max_trials {
+            if let Some(ray) = bound.trial(rng) {
+                rays += 1;
+                if bound.accepts(&ray, tracer.closest(&ray)) {
+                    return (Some(n), rays);
+                }
+            }
+        }
+        (None, rays)
+    }
+
+    fn packets<T: TentativeTracer + ?Sized>(
+        &self,
+        tracer: &T,
+        bound: &AngularBound,
+        rng: &mut Rng,
+    ) -> (Option<u32>, u32) {
+        let mut rays = 0;
+        let mut done = 0;
+        let mut packet = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
+        while done < self.max_trials {
+            let lanes = (self.max_trials - done).min(PACKET as u32) as usize;
+            let mut active = 0u8;
+            for (i, slot) in packet.iter_mut().enumerate().take(lanes) {
+                if let Some(ray) = bound.trial(rng) {
+                    *slot = ray;
+                    active |= 1 << i;
+                }
+            }
+            if active != 0 {
+                rays += active.count_ones();
+                let hits = tracer.closest8(&packet, active);
+                // The first success in trial order decides, as if traced one by one.
+                let first = (0..lanes)
+                    .find(|&i| active & (1 << i) != 0 && bound.accepts(&packet[i], hits[i]));
+                if let Some(i) = first {
+                    return (Some(done + i as u32 + 1), rays);
+                }
+            }
+            done += lanes as u32;
+        }
+        (None, rays)
+    }
+}

@@ -1,0 +1,550 @@
+//! The acceptance estimator of UPG is unbiased: the mean of many estimates N/P matches 1/p_acc
+//! integrated numerically (000 eqs. 2.57, 2.65) for lambert and Phong lobes, oblique and
+//! near-grazing targets, short distances and an occluder. Packets and single rays agree trial
+//! for trial; the whole-lobe fallback is the BSDF's own sampling; the cap is reported.
+
+use glam::{DVec3, Vec3};
+use vmerge::accel::{Ray, PACKET};
+use vmerge::bsdf::{Bsdf, MaterialKind, TransportMode};
+use vmerge::color::Rgb;
+use vmerge::integrator::upg::acceptance::{
+    AcceptanceError, AngularBound, Estimator, Outcome, PacketWidth, TentativeTracer,
+};
+use vmerge::sampling::{Rng, Stream};
+
+const RADIUS: f64 = 0.05;
+
+/// An occluder-free scene of one (two-sided, infinite) target plane, and optionally a half-plane
+/// parallel to it halfway to the origin, `{q + s v + h u : h >= 0}`, shadowing the part of the
+/// disc with disc coordinate `u` beyond the projection of its edge.
+struct Planes {
+    target: DVec3,
+    normal: DVec3,
+    occluder: Option<(DVec3, DVec3)>,
+}
+
+fn plane_t(ray: &Ray, point: DVec3, normal: DVec3) -> Option<f64> {
+    let (o, d) = (ray.origin.as_dvec3(), ray.dir.as_dvec3());
+    let denom = d.dot(normal);
+    if denom == 0.0 {
+        return None;
+    }
+    let t = (point - o).dot(normal) / denom;
+    (t >= ray.tmin as f64 && t <= ray.tmax as f64).then_some(t)
+}
+
+impl TentativeTracer for Planes {
+    fn closest(&self, ray: &Ray) -> Option<f32> {
+        let target = plane_t(ray, self.target, self.normal);
+        let occluder = self.occluder.and_then(|(q, u)| {
+            let t = plane_t(ray, q, self.normal)?;
+            let x = ray.origin.as_dvec3() + t * ray.dir.as_dvec3();
+            ((x - q).dot(u) >= 0.0).then_some(t)
+        });
+        match (target, occluder) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        }
+        .map(|t| t as f32)
+    }
+
+    fn closest8(&self, rays: &[Ray; PACKET], active: u8) -> [Option<f32>; PACKET] {
+        std::array::from_fn(|i| {
+            if active & (1 << i) != 0 {
+                self.closest(&rays[i])
+            } else {
+                None
+            }
+        })
+    }
+}
+
+#[derive(Clone)]
+struct Config {
+    name: &'static str,
+    kind: MaterialKind,
+    /// Polar angle of `wo` from the origin's normal (+z), azimuth 0.
+    wo_deg: f64,
+    /// Direction of the target from the origin: polar angle and azimuth.
+    theta_deg: f64,
+    phi_deg: f64,
+    d_over_r: f64,
+    /// Angle between the target plane's normal and the direction back to the origin.
+    tilt_deg: f64,
+    /// Disc coordinate (in radii) of the occluder's shadow edge; the disc beyond it is hidden.
+    shadow_edge: Option<f64>,
+}
+
+fn lambert() -> MaterialKind {
+    MaterialKind::Lambert {
+        kd: Rgb::splat(0.8),
+    }
+}
+
+fn phong(kd: f32, ks: f32, exponent: f32) -> MaterialKind {
+    MaterialKind::Phong {
+        kd: Rgb::splat(kd),
+        ks: Rgb::splat(ks),
+        exponent,
+    }
+}
+
+fn cfg(
+    name: &'static str,
+    kind: MaterialKind,
+    wo_deg: f64,
+    (theta_deg, phi_deg): (f64, f64),
+    d_over_r: f64,
+    tilt_deg: f64,
+) -> Config {
+    Config {
+        name,
+        kind,
+        wo_deg,
+        theta_deg,
+        phi_deg,
+        d_over_r,
+        tilt_deg,
+        shadow_edge: None,
+    }
+}
+
+fn spherical(theta_deg: f64, phi_deg: f64) -> DVec3 {
+    let (t, p) = (theta_deg.to_radians(), phi_deg.to_radians());
+    DVec3::new(t.sin() * p.cos(), t.sin() * p.sin(), t.cos())
+}
+
+/// The geometry of a configuration: origin at 0 on the plane z = 0; target point, target
+/// plane normal, disc axes `(u, v)`.
+struct Setup {
+    target: DVec3,
+    normal: DVec3,
+    u: DVec3,
+    v: DVec3,
+}
+
+fn setup(c: &Config) -> Setup {
+    let dir = spherical(c.theta_deg, c.phi_deg);
+    let target = dir * (c.d_over_r * RADIUS);
+    let axis = dir.cross(DVec3::Z).try_normalize().unwrap_or(DVec3::X);
+    let tilt = c.tilt_deg.to_radians();
+    let back = -dir;
+    let normal = back * tilt.cos() + axis.cross(back) * tilt.sin();
+    let u = axis.cross(normal).normalize();
+    let v = normal.cross(u);
+    Setup {
+        target,
+        normal,
+        u,
+        v,
+    }
+}
+
+fn planes(c: &Config, s: &Setup) -> Planes {
+    let occluder = c.shadow_edge.map(|edge| {
+        // Halfway between the origin and the shadow edge's point on the target plane, in a plane
+        // parallel to it: its edge projects onto the line u = edge.
+        let q = 0.5 * (s.target + s.u * (edge * RADIUS));
+        (q, s.u)
+    });
+    Planes {
+        target: s.target,
+        normal: s.normal,
+        occluder,
+    }
+}
+
+fn bsdf(kind: &MaterialKind, wo_deg: f64) -> Bsdf<'_> {
+    let wo = spherical(wo_deg, 0.0).as_vec3();
+    Bsdf::new(kind, Vec3::Z, wo, TransportMode::Importance).expect("wo off the surface")
+}
+
+/// p_acc = integral over the visible disc of pdf_w(w) cos_disc / dist^2 dA (000 eq. 2.57), by
+/// composite Gauss-Legendre in (s, w) with u = r sin s, v = r cos s w, which keeps the
+/// integrand smooth up to the disc's rim and the shadow edge.
+fn p_acc(c: &Config, s: &Setup, b: &Bsdf, panels: usize) -> f64 {
+    const X: [f64; 4] = [
+        0.183_434_642_495_649_8,
+        0.525_532_409_916_329,
+        0.796_666_477_413_626_7,
+        0.960_289_856_497_536_3,
+    ];
+    const W: [f64; 4] = [
+        0.362_683_783_378_362,
+        0.313_706_645_877_887_3,
+        0.222_381_034_453_374_5,
+        0.101_228_536_290_376_3,
+    ];
+    // Nodes and weights of a composite 8-point rule on [a, b].
+    let rule = |a: f64, b: f64| {
+        let h = (b - a) / panels as f64;
+        (0..panels).flat_map(move |p| {
+            let mid = a + (p as f64 + 0.5) * h;
+            (0..8).map(move |k| {
+                let (x, w) = (X[k % 4] * if k < 4 { -1.0 } else { 1.0 }, W[k % 4]);
+                (mid + 0.5 * h * x, 0.5 * h * w)
+            })
+        })
+    };
+    let s_max = c
+        .shadow_edge
+        .map_or(std::f64::consts::FRAC_PI_2, |e| e.clamp(-1.0, 1.0).asin());
+    let mut sum = 0.0;
+    for (sv, ws) in rule(-std::f64::consts::FRAC_PI_2, s_max) {
+        let (sin_s, cos_s) = sv.sin_cos();
+        for (w, ww) in rule(-1.0, 1.0) {
+            let x = s.target + s.u * (RADIUS * sin_s) + s.v * (RADIUS * cos_s * w);
+            let dist2 = x.length_squared();
+            let dir = x / dist2.sqrt();
+            let pdf = b.eval(dir.as_vec3()).pdf_w as f64;
+            let cos_disc = dir.dot(s.normal).abs();
+            sum += ws * ww * RADIUS * RADIUS * cos_s * cos_s * pdf * cos_disc / dist2;
+        }
+    }
+    sum
+}
+
+fn configs() -> Vec<Config> {
+    let occluded = |mut c: Config, edge| {
+        c.shadow_edge = Some(edge);
+        c
+    };
+    vec![
+        cfg(
+            "lambert, normal target",
+            lambert(),
+            30.0,
+            (0.0, 0.0),
+            20.0,
+            0.0,
+        ),
+        cfg(
+            "lambert, oblique",
+            lambert(),
+            30.0,
+            (50.0, 40.0),
+            20.0,
+            60.0,
+        ),
+        cfg(
+            "lambert, grazing disc",
+            lambert(),
+            30.0,
+            (30.0, 0.0),
+            10.0,
+            85.0,
+        ),
+        cfg(
+            "lambert, target at horizon",
+            lambert(),
+            30.0,
+            (88.0, 90.0),
+            10.0,
+            20.0,
+        ),
+        cfg("lambert, d = 3r", lambert(), 60.0, (40.0, 0.0), 3.0, 30.0),
+        cfg("lambert, d = 1.5r", lambert(), 30.0, (20.0, 0.0), 1.5, 10.0),
+        cfg("lambert, d = 0.5r", lambert(), 30.0, (0.0, 0.0), 0.5, 0.0),
+        cfg(
+            "lambert, below horizon",
+            lambert(),
+            30.0,
+            (125.0, 0.0),
+            1.15,
+            55.0,
+        ),
+        cfg(
+            "phong 1",
+            phong(0.0, 0.8, 1.0),
+            45.0,
+            (45.0, 180.0),
+            20.0,
+            30.0,
+        ),
+        cfg(
+            "phong 10",
+            phong(0.0, 0.8, 10.0),
+            45.0,
+            (45.0, 180.0),
+            20.0,
+            30.0,
+        ),
+        cfg(
+            "phong 100",
+            phong(0.0, 0.8, 100.0),
+            45.0,
+            (45.0, 180.0),
+            20.0,
+            30.0,
+        ),
+        cfg(
+            "phong 1000",
+            phong(0.0, 0.8, 1000.0),
+            45.0,
+            (45.0, 180.0),
+            20.0,
+            30.0,
+        ),
+        cfg(
+            "phong 1, wo normal",
+            phong(0.0, 0.8, 1.0),
+            0.0,
+            (30.0, 0.0),
+            5.0,
+            0.0,
+        ),
+        cfg(
+            "phong 100, wo 10",
+            phong(0.0, 0.8, 100.0),
+            10.0,
+            (12.0, 170.0),
+            30.0,
+            0.0,
+        ),
+        cfg(
+            "phong 100, off peak",
+            phong(0.0, 0.8, 100.0),
+            45.0,
+            (55.0, 180.0),
+            20.0,
+            0.0,
+        ),
+        cfg(
+            "phong 1000, wo 70",
+            phong(0.0, 0.8, 1000.0),
+            70.0,
+            (71.0, 180.0),
+            50.0,
+            45.0,
+        ),
+        cfg(
+            "phong 10, grazing",
+            phong(0.0, 0.8, 10.0),
+            80.0,
+            (84.0, 180.0),
+            10.0,
+            60.0,
+        ),
+        cfg(
+            "phong 1000, d = 4r",
+            phong(0.0, 0.8, 1000.0),
+            30.0,
+            (32.0, 180.0),
+            4.0,
+            75.0,
+        ),
+        cfg(
+            "mixture 10",
+            phong(0.3, 0.5, 10.0),
+            30.0,
+            (30.0, 180.0),
+            20.0,
+            20.0,
+        ),
+        cfg(
+            "mixture 100",
+            phong(0.3, 0.5, 100.0),
+            60.0,
+            (50.0, 170.0),
+            10.0,
+            40.0,
+        ),
+        cfg(
+            "mixture 1000, d = 3r",
+            phong(0.3, 0.5, 1000.0),
+            45.0,
+            (45.0, 180.0),
+            3.0,
+            10.0,
+        ),
+        occluded(
+            cfg(
+                "lambert, occluded",
+                lambert(),
+                30.0,
+                (30.0, 0.0),
+                10.0,
+                20.0,
+            ),
+            0.3,
+        ),
+        occluded(
+            cfg(
+                "phong 100, occluded",
+                phong(0.0, 0.8, 100.0),
+                45.0,
+                (45.0, 180.0),
+                20.0,
+                30.0,
+            ),
+            -0.2,
+        ),
+    ]
+}
+
+#[test]
+fn mean_estimate_is_the_reciprocal_acceptance_probability() {
+    const ESTIMATES: usize = 20_000;
+    let estimator = Estimator {
+        packet: PacketWidth::One,
+        max_trials: 1_000_000,
+    };
+    let mut failures = Vec::new();
+    for (index, c) in configs().iter().enumerate() {
+        let s = setup(c);
+        let b = bsdf(&c.kind, c.wo_deg);
+        let coarse = p_acc(c, &s, &b, 32);
+        let exact = p_acc(c, &s, &b, 64);
+        assert!(
+            (coarse - exact).abs() < 1e-4 * exact,
+            "{}: quadrature not converged ({coarse} vs {exact})",
+            c.name
+        );
+        let expected = 1.0 / exact;
+        let tracer = planes(c, &s);
+        let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
+            .expect("non-delta BSDF");
+        let mut rng = Rng::for_sample(11, index as u64, 0, Stream::Tentative);
+        let (mut sum, mut sum2, mut trials) = (0.0f64, 0.0f64, 0u64);
+        for _ in 0..ESTIMATES {
+            let e = estimator.estimate(&tracer, &bound, &mut rng);
+            let value = e.inv_p_acc().expect("never capped") as f64;
+            sum += value;
+            sum2 += value * value;
+            trials += e.trials as u64;
+        }
+        let n = ESTIMATES as f64;
+        let mean = sum / n;
+        let se = ((sum2 / n - mean * mean) * n / (n - 1.0) / n).sqrt();
+        let z = (mean - expected) / se;
+        println!(
+            "{:28} P {:9.3e}  1/p_acc {:11.5e}  mean {:11.5e}  se {:5.2}%  z {:+5.2}  trials {:6.2}",
+            c.name,
+            bound.p_bound(),
+            expected,
+            mean,
+            100.0 * se / expected,
+            z,
+            trials as f64 / n
+        );
+        if z.abs() > 3.0 || se > 0.01 * expected {
+            failures.push(c.name);
+        }
+    }
+    assert!(failures.is_empty(), "biased or too noisy: {failures:?}");
+}
+
+#[test]
+fn packets_and_single_rays_give_the_same_estimates() {
+    for (index, c) in configs().iter().enumerate() {
+        let s = setup(c);
+        let b = bsdf(&c.kind, c.wo_deg);
+        let tracer = planes(c, &s);
+        let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
+            .expect("non-delta BSDF");
+        // A small cap not a multiple of 8 exercises the last, partial packet.
+        for max_trials in [1_000_000, 13] {
+            for seed in 0..200 {
+                let single = Estimator {
+                    packet: PacketWidth::One,
+                    max_trials,
+                };
+                let eight = Estimator {
+                    packet: PacketWidth::Eight,
+                    ..single
+                };
+                let mut a = Rng::for_sample(seed, index as u64, 1, Stream::Tentative);
+                let mut b = a.clone();
+                let one = single.estimate(&tracer, &bound, &mut a);
+                let many = eight.estimate(&tracer, &bound, &mut b);
+                assert_eq!(one.outcome, many.outcome, "{}, seed {seed}", c.name);
+                assert_eq!(one.trials, many.trials, "{}, seed {seed}", c.name);
+                assert!(one.rays <= many.rays && many.rays <= one.trials.next_multiple_of(8));
+            }
+        }
+    }
+}
+
+#[test]
+fn whole_lobe_fallback_is_the_bsdf_sampling() {
+    let kinds = [lambert(), phong(0.0, 0.8, 20.0), phong(0.3, 0.5, 100.0)];
+    for kind in &kinds {
+        for wo_deg in [0.0, 40.0, 85.0] {
+            let b = bsdf(kind, wo_deg);
+            // The origin inside the r-sphere, and a sphere covering most of the hemisphere.
+            for (target, radius) in [(Vec3::new(0.0, 0.0, 0.02), 0.05), (Vec3::Z, 0.999)] {
+                let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, target, radius)
+                    .expect("non-delta BSDF");
+                assert!(bound.is_whole());
+                assert_eq!(bound.p_bound(), 1.0);
+                let mut rng = Rng::for_sample(3, 0, 0, Stream::Tentative);
+                for _ in 0..10_000 {
+                    let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+                    assert_eq!(bound.sample_direction(u), b.sample(u).map(|s| s.wi));
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn capped_estimates_are_reported() {
+    // The occluder hides the whole disc: p_acc = 0 while P > 0.
+    let mut c = cfg("hidden", lambert(), 30.0, (30.0, 0.0), 10.0, 20.0);
+    c.shadow_edge = Some(-2.0);
+    let s = setup(&c);
+    let b = bsdf(&c.kind, c.wo_deg);
+    let tracer = planes(&c, &s);
+    let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
+        .expect("non-delta BSDF");
+    assert!(bound.p_bound() > 0.0);
+    for packet in [PacketWidth::One, PacketWidth::Eight] {
+        for max_trials in [13, 10_000] {
+            let estimator = Estimator { packet, max_trials };
+            let mut rng = Rng::for_sample(5, 0, 0, Stream::Tentative);
+            let e = estimator.estimate(&tracer, &bound, &mut rng);
+            assert_eq!(e.outcome, Outcome::Capped);
+            assert!(e.capped() && e.inv_p_acc().is_none());
+            assert_eq!(e.trials, max_trials);
+            assert!(e.rays > 0 && e.rays <= max_trials);
+        }
+    }
+}
+
+#[test]
+fn unreachable_targets_and_invalid_inputs() {
+    let kind = lambert();
+    let b = bsdf(&kind, 30.0);
+    let below = Vec3::new(0.3, 0.0, -1.0);
+    let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, below, 0.05).expect("lambert");
+    assert_eq!(bound.p_bound(), 0.0);
+    let tracer = Planes {
+        target: below.as_dvec3(),
+        normal: DVec3::Z,
+        occluder: None,
+    };
+    let e = Estimator::default().estimate(&tracer, &bound, &mut Rng::from_seed(1, 1));
+    assert_eq!((e.outcome, e.trials, e.rays), (Outcome::Unreachable, 0, 0));
+
+    for radius in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        assert!(matches!(
+            AngularBound::new(Vec3::ZERO, Vec3::Z, &b, Vec3::Z, radius),
+            Err(AcceptanceError::InvalidRadius(_))
+        ));
+    }
+    for delta in [
+        MaterialKind::Mirror { ks: Rgb::WHITE },
+        MaterialKind::Glass { ior: 1.5 },
+    ] {
+        let d = bsdf(&delta, 30.0);
+        assert_eq!(
+            AngularBound::new(Vec3::ZERO, Vec3::Z, &d, Vec3::Z, 0.05).err(),
+            Some(AcceptanceError::DeltaBsdf)
+        );
+    }
+    assert_eq!(PacketWidth::try_from(8), Ok(PacketWidth::Eight));
+    assert_eq!(
+        PacketWidth::try_from(4),
+        Err(AcceptanceError::PacketWidth(4))
+    );
+}
