@@ -74,3 +74,30 @@ fn missing_input_files_exit_2() {
         assert!(stderr.contains("missing"), "{args:?}: {stderr}");
     }
 }
+
+/// Options that mean nothing for the technique, or a technique that does not exist, are
+/// refused before anything renders, naming the option.
+#[test]
+fn meaningless_strategies_exit_2() {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml");
+    for (args, expected) in [
+        (vec!["-t", "vcm", "--strategy", "1,2"], "--strategy"),
+        (vec!["-t", "pt", "--unweighted"], "--unweighted"),
+        (vec!["-t", "bpt", "--strategy", "2,0"], "--strategy 2,0"),
+        (vec!["-t", "bpt", "--strategy", "two"], "--strategy"),
+    ] {
+        let out = tempfile::tempdir().unwrap();
+        let result = vmerge()
+            .args(["render", "--iterations", "1", "--resolution", "8x8", "-o"])
+            .arg(out.path().join("out.exr"))
+            .args(&args)
+            .arg(&scene)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+        let written: Vec<_> = std::fs::read_dir(out.path()).unwrap().collect();
+        assert!(written.is_empty(), "{args:?}: wrote {written:?}");
+    }
+}
