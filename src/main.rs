@@ -136,6 +136,12 @@ struct TechniqueArgs {
     /// bpt: leave out the MIS weights (with --strategy: one technique's full estimate).
     #[arg(long)]
     unweighted: bool,
+    /// upg, upg-camera: trace tentative rays 1 or 8 at a time.
+    #[arg(long, default_value_t = 1)]
+    upg_packet: u32,
+    /// upg, upg-camera: trials after which a merge is dropped (and counted).
+    #[arg(long, default_value_t = 10_000)]
+    upg_max_trials: u32,
 }
 
 #[derive(Args)]
@@ -296,6 +302,8 @@ fn render(args: RenderArgs) -> Result<()> {
         no_vm: t.no_vm,
         strategy: t.strategy,
         unweighted: t.unweighted,
+        upg_packet: t.upg_packet,
+        upg_max_trials: t.upg_max_trials,
     };
     options.validate()?;
     let setup = vmerge::render::NewRender {

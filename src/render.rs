@@ -24,6 +24,12 @@ pub enum RenderError {
     BptOnly(&'static str),
     #[error("--strategy {0},{1}: no such technique (t counts the camera vertex, so t >= 1 and s + t >= 2)")]
     NoSuchStrategy(u32, u32),
+    #[error("--no-vc, --no-vm and --alpha do not apply to upg and upg-camera (both connect and merge, at a fixed radius)")]
+    UpgOptions,
+    #[error("--upg-packet {0}: tentative rays go 1 or 8 at a time")]
+    UpgPacket(u32),
+    #[error("--upg-max-trials must be at least 1")]
+    UpgMaxTrials,
     #[error("{file}: the scene changed since this render began (hash {recorded} recorded, {now} now); use --force to continue anyway")]
     SceneChanged {
         file: PathBuf,
@@ -57,6 +63,20 @@ pub struct RenderOptions {
     /// `bpt` only: leave the MIS weights out (each technique at weight 1).
     #[serde(default)]
     pub unweighted: bool,
+    /// `upg`, `upg-camera`: tentative rays traced 1 or 8 at a time.
+    #[serde(default = "default_upg_packet")]
+    pub upg_packet: u32,
+    /// `upg`, `upg-camera`: Bernoulli trials after which a merge is dropped.
+    #[serde(default = "default_upg_max_trials")]
+    pub upg_max_trials: u32,
+}
+
+fn default_upg_packet() -> u32 {
+    1
+}
+
+fn default_upg_max_trials() -> u32 {
+    crate::integrator::upg::acceptance::DEFAULT_MAX_TRIALS
 }
 
 impl RenderOptions {
@@ -64,6 +84,16 @@ impl RenderOptions {
     pub fn validate(&self) -> Result<(), RenderError> {
         if (self.strategy.is_some() || self.unweighted) && self.technique != Technique::Bpt {
             return Err(RenderError::BptOnly(self.technique.name()));
+        }
+        let upg = matches!(self.technique, Technique::Upg | Technique::UpgCamera);
+        if upg && (self.no_vc || self.no_vm || self.alpha.is_some()) {
+            return Err(RenderError::UpgOptions);
+        }
+        if self.upg_packet != 1 && self.upg_packet != 8 {
+            return Err(RenderError::UpgPacket(self.upg_packet));
+        }
+        if self.upg_max_trials == 0 {
+            return Err(RenderError::UpgMaxTrials);
         }
         if let Some([s, t]) = self.strategy {
             if t == 0 || s + t < 2 {
@@ -90,6 +120,8 @@ impl Default for RenderOptions {
             no_vm: false,
             strategy: None,
             unweighted: false,
+            upg_packet: default_upg_packet(),
+            upg_max_trials: default_upg_max_trials(),
         }
     }
 }

@@ -13,7 +13,7 @@ mod common;
 
 use glam::Vec3;
 use vmerge::bsdf::{Bsdf, TransportMode};
-use vmerge::integrator::mis::{self, BptStep, BptVertex, Power, VcmVertex, VcmWeights};
+use vmerge::integrator::mis::{self, BptStep, BptVertex, Power, VcmVertex, VcmWeights, VmHere};
 use vmerge::sampling::{Rng, Stream};
 use vmerge::scene::{Camera, Scene};
 
@@ -370,11 +370,39 @@ fn direct_weights(power: Power, path: &FullPath, q: &PathPdfs) -> Vec<f64> {
     pdfs.iter().map(|p| p / sum).collect()
 }
 
-/// The VCM weights of the connection techniques s = 0..=k and the merges at x_1..x_{k-1}.
-fn vcm_weights(w: &VcmWeights, path: &FullPath, q: &PathPdfs) -> (Vec<f32>, Vec<f32>) {
+/// How merges are made: which merges are techniques.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Gather {
+    /// Density estimation (vcm): every non-delta vertex.
+    Density,
+    /// UPG from the light side: the merge vertex's predecessor on the light side is a
+    /// non-delta surface vertex.
+    UpgLight,
+    /// UPG from the camera side: its successor on the eye side is one.
+    UpgCamera,
+}
+
+/// The VCM weights of the connection techniques s = 0..=k and the merges at x_1..x_{k-1},
+/// following vcm.rs: the light sub-path arrives at x_i, settles a deferred merge, is stored,
+/// and scatters on; the eye sub-path likewise from the camera.
+fn vcm_weights(
+    w: &VcmWeights,
+    gather: Gather,
+    path: &FullPath,
+    q: &PathPdfs,
+) -> (Vec<f32>, Vec<f32>) {
     let k = q.k;
     let l = path.light;
-    // Light sub-path, as vcm.rs traces it: arrive at x_i, store, scatter towards x_{i+1}.
+    let surface = |i: usize| (1..k).contains(&i) && q.connectable[i];
+    let known = |ok: bool| if ok { VmHere::Valid } else { VmHere::Invalid };
+    let merge_valid = |j: usize| {
+        surface(j)
+            && match gather {
+                Gather::Density => true,
+                Gather::UpgLight => surface(j - 1),
+                Gather::UpgCamera => surface(j + 1),
+            }
+    };
     let mut light = vec![VcmVertex::default(); k];
     let mut state = w.light_origin(
         l.pick * l.pdf_a,
@@ -382,7 +410,7 @@ fn vcm_weights(w: &VcmWeights, path: &FullPath, q: &PathPdfs) -> (Vec<f32>, Vec<
         if l.infinite { 1.0 } else { l.cos_at_light },
         l.delta,
     );
-    #[allow(clippy::needless_range_loop)] // i indexes three arrays of the path
+    #[allow(clippy::needless_range_loop)] // i indexes several arrays of the path
     for i in 1..k {
         w.arrive(
             &mut state,
@@ -390,22 +418,48 @@ fn vcm_weights(w: &VcmWeights, path: &FullPath, q: &PathPdfs) -> (Vec<f32>, Vec<
             q.cos_prev[i],
             !(i == 1 && l.infinite),
         );
+        w.resolve(&mut state, surface(i));
         light[i] = state;
         if i + 1 < k {
+            let here = match gather {
+                Gather::Density => VmHere::Valid,
+                Gather::UpgLight => known(surface(i - 1)),
+                Gather::UpgCamera => VmHere::Deferred,
+            };
             let delta = !q.connectable[i];
-            w.scatter(&mut state, q.cos_next[i], q.light_w[i], q.eye_w[i], delta);
+            w.scatter(
+                &mut state,
+                q.cos_next[i],
+                q.light_w[i],
+                q.eye_w[i],
+                delta,
+                here,
+            );
         }
     }
-    // Eye sub-path from the camera: arrive at x_i, store, scatter towards x_{i-1}.
     let mut eye = vec![VcmVertex::default(); k + 1];
     let mut state = w.camera_origin(q.camera_pdf_w);
     for i in (1..k).rev() {
         w.arrive(&mut state, q.dist2[i].sqrt(), q.cos_next[i], true);
+        w.resolve(&mut state, surface(i));
         eye[i] = state;
+        let here = match gather {
+            Gather::Density => VmHere::Valid,
+            Gather::UpgLight => VmHere::Deferred,
+            Gather::UpgCamera => known(surface(i + 1)),
+        };
         let delta = !q.connectable[i];
-        w.scatter(&mut state, q.cos_prev[i], q.eye_w[i], q.light_w[i], delta);
+        w.scatter(
+            &mut state,
+            q.cos_prev[i],
+            q.eye_w[i],
+            q.light_w[i],
+            delta,
+            here,
+        );
     }
-    // Reaching the light: area lights add the last segment, the sky does not.
+    // Reaching the light: area lights add the last segment, the sky does not; the light
+    // point is no surface to merge through.
     if !l.infinite {
         w.arrive(&mut state, q.dist2[0].sqrt(), l.cos_at_light, true);
     }
@@ -420,6 +474,7 @@ fn vcm_weights(w: &VcmWeights, path: &FullPath, q: &PathPdfs) -> (Vec<f32>, Vec<
             } else if s == 1 {
                 w.light_sample(
                     &eye[1],
+                    merge_valid(1),
                     q.eye_w[1],
                     q.light_w[1],
                     l.pick * l.direct_pdf_w,
@@ -431,11 +486,18 @@ fn vcm_weights(w: &VcmWeights, path: &FullPath, q: &PathPdfs) -> (Vec<f32>, Vec<
                 )
             } else if s == k {
                 let camera_pdf_a = q.eye_a[k - 1] * w.light_paths;
-                w.to_camera(&light[k - 1], camera_pdf_a, q.eye_w[k - 1])
+                w.to_camera(
+                    &light[k - 1],
+                    merge_valid(k - 1),
+                    camera_pdf_a,
+                    q.eye_w[k - 1],
+                )
             } else {
                 w.connect(
                     &light[s - 1],
+                    merge_valid(s - 1),
                     &eye[s],
+                    merge_valid(s),
                     q.eye_w[s - 1],
                     q.light_w[s],
                     q.light_a[s],
@@ -448,7 +510,7 @@ fn vcm_weights(w: &VcmWeights, path: &FullPath, q: &PathPdfs) -> (Vec<f32>, Vec<
     // is evaluated towards the light vertex's incoming direction.
     let vm = (1..k)
         .map(|j| {
-            if !q.connectable[j] {
+            if !merge_valid(j) {
                 return 0.0;
             }
             w.merge(&light[j], &eye[j], q.eye_w[j], q.light_w[j])
@@ -517,23 +579,25 @@ fn check_scene(name: &str) -> (usize, usize) {
                     q.k
                 );
             }
-            for radius in [1e-3, 1e-2, 0.1] {
-                let w = VcmWeights::new(power, radius, setup.n(), true, true);
-                let (vc, vm) = vcm_weights(&w, path, &q);
-                let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
-                assert!(
-                    (sum - 1.0).abs() < 1e-4,
-                    "{name}: VCM weights of a {}-segment path sum to {sum} (beta {beta}, \
-                     r {radius}): VC {vc:?} VM {vm:?}",
-                    q.k
-                );
-                if vm.iter().any(|&m| m > 1e-3) {
-                    merged += 1;
+            for gather in [Gather::Density, Gather::UpgLight, Gather::UpgCamera] {
+                for radius in [1e-3, 1e-2, 0.1] {
+                    let w = VcmWeights::new(power, radius, setup.n(), true, true);
+                    let (vc, vm) = vcm_weights(&w, gather, path, &q);
+                    let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
+                    assert!(
+                        (sum - 1.0).abs() < 1e-4,
+                        "{name}: {gather:?} weights of a {}-segment path sum to {sum} \
+                         (beta {beta}, r {radius}): VC {vc:?} VM {vm:?}",
+                        q.k
+                    );
+                    if vm.iter().any(|&m| m > 1e-3) {
+                        merged += 1;
+                    }
                 }
             }
             // VC alone is BPT: the two recursions give the same weights.
             let w = VcmWeights::new(power, 0.01, setup.n(), true, false);
-            let (vc, _) = vcm_weights(&w, path, &q);
+            let (vc, _) = vcm_weights(&w, Gather::Density, path, &q);
             for (s, (a, b)) in vc.iter().zip(&bpt).enumerate() {
                 assert!(
                     (a - b).abs() < 1e-4,

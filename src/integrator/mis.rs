@@ -185,6 +185,19 @@ pub fn bpt_to_camera(
     )
 }
 
+/// Whether merging at the vertex a sub-path scatters from is one of the techniques. Vertex
+/// merging by density estimation (`vcm`, `bpm`, `ppm`) merges at every non-delta vertex;
+/// unbiased photon gathering needs the merge vertex's neighbour on the gathering side to be a
+/// non-delta surface vertex too (the tentative rays leave from it, 000 sec. 2.4.3), which for
+/// one of the two sub-paths is only known one vertex later.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum VmHere {
+    Valid,
+    Invalid,
+    /// Decided on arrival at the next vertex ([`VcmWeights::resolve`]).
+    Deferred,
+}
+
 /// Per-iteration constants of the VCM weights (001 eqs. (20)-(22) and sec. 5.5-5.6).
 #[derive(Clone, Copy, Debug)]
 pub struct VcmWeights {
@@ -238,6 +251,7 @@ impl VcmWeights {
             d_vcm: self.mis(direct_pdf_a / emission_pdf_w),
             d_vc,
             d_vm: d_vc * self.vc_factor,
+            pending_vm: 0.0,
         }
     }
 
@@ -248,6 +262,7 @@ impl VcmWeights {
             d_vcm: self.mis(self.light_paths / camera_pdf_w),
             d_vc: 0.0,
             d_vm: 0.0,
+            pending_vm: 0.0,
         }
     }
 
@@ -262,10 +277,14 @@ impl VcmWeights {
         v.d_vcm *= inv;
         v.d_vc *= inv;
         v.d_vm *= inv;
+        v.pending_vm *= inv;
     }
 
     /// Scattering at a vertex (001 eqs. (34)-(36), the sampling part): `pdf_w` the pdf of the
     /// sampled direction, `rev_pdf_w` of the reverse, `cos_out` at the sampled direction.
+    /// `merge_here` says whether merging at this vertex is a technique: its terms are
+    /// mis(eta_VCM) in d^VC and 1 in d^VM (001 eqs. (35)-(36)), with eta_VCM the same for every
+    /// vertex (no clamping), so d^VM stays d^VC / eta_VCM when both VC and VM run.
     pub fn scatter(
         &self,
         v: &mut VcmVertex,
@@ -273,6 +292,7 @@ impl VcmWeights {
         pdf_w: f32,
         rev_pdf_w: f32,
         delta: bool,
+        merge_here: VmHere,
     ) {
         if delta {
             // 001 sec. 5.3: delta pdfs cancel; only the cosine ratio survives.
@@ -281,10 +301,28 @@ impl VcmWeights {
             v.d_vm *= self.mis(cos_out);
         } else {
             let ratio = self.mis(cos_out / pdf_w);
-            v.d_vc = ratio * (v.d_vc * self.mis(rev_pdf_w) + v.d_vcm + self.vm_factor);
-            v.d_vm = ratio * (v.d_vm * self.mis(rev_pdf_w) + v.d_vcm * self.vc_factor + 1.0);
+            let here = if merge_here == VmHere::Valid {
+                1.0
+            } else {
+                0.0
+            };
+            v.d_vc = ratio * (v.d_vc * self.mis(rev_pdf_w) + v.d_vcm + here * self.vm_factor);
+            v.d_vm = ratio * (v.d_vm * self.mis(rev_pdf_w) + v.d_vcm * self.vc_factor + here);
             v.d_vcm = self.mis(1.0 / pdf_w);
+            if merge_here == VmHere::Deferred {
+                v.pending_vm = ratio;
+            }
         }
+    }
+
+    /// Settles a [`VmHere::Deferred`] merge at the previous vertex once this vertex shows
+    /// whether the tentative rays could leave from it.
+    pub fn resolve(&self, v: &mut VcmVertex, valid: bool) {
+        if valid {
+            v.d_vc += v.pending_vm * self.vm_factor;
+            v.d_vm += v.pending_vm;
+        }
+        v.pending_vm = 0.0;
     }
 
     /// An eye sub-path hits a light (s = 0; 001 eqs. (42)-(43)); the pdfs include the light's
@@ -302,6 +340,7 @@ impl VcmWeights {
     pub fn light_sample(
         &self,
         eye: &VcmVertex,
+        eye_merge: bool,
         bsdf_pdf_w: f32,
         bsdf_rev_pdf_w: f32,
         light_pdf_w: f32,
@@ -317,33 +356,52 @@ impl VcmWeights {
             self.mis(bsdf_pdf_w / light_pdf_w)
         };
         let w_camera = self.mis(emission_pdf_w * cos_to_light / (direct_pdf_w * cos_at_light))
-            * (self.vm_factor + eye.d_vcm + eye.d_vc * self.mis(bsdf_rev_pdf_w));
+            * (self.vm_term(eye_merge) + eye.d_vcm + eye.d_vc * self.mis(bsdf_rev_pdf_w));
         1.0 / (w_light + 1.0 + w_camera)
+    }
+
+    /// The merge at a connection's end vertex, as a share of the connection (001 eq. (40)).
+    fn vm_term(&self, merge_here: bool) -> f32 {
+        if merge_here {
+            self.vm_factor
+        } else {
+            0.0
+        }
     }
 
     /// Connection of a light vertex and an eye vertex (s, t > 1; 001 eqs. (40)-(41)): each
     /// side's area pdf of being sampled by the other, and each side's reverse pdf.
+    /// `*_merge`: whether merging at that end vertex is a technique.
+    #[allow(clippy::too_many_arguments)]
     pub fn connect(
         &self,
         light: &VcmVertex,
+        light_merge: bool,
         eye: &VcmVertex,
+        eye_merge: bool,
         light_rev_pdf_w: f32,
         eye_rev_pdf_w: f32,
         light_pdf_a: f32,
         eye_pdf_a: f32,
     ) -> f32 {
         let w_light = self.mis(eye_pdf_a)
-            * (self.vm_factor + light.d_vcm + light.d_vc * self.mis(light_rev_pdf_w));
+            * (self.vm_term(light_merge) + light.d_vcm + light.d_vc * self.mis(light_rev_pdf_w));
         let w_camera = self.mis(light_pdf_a)
-            * (self.vm_factor + eye.d_vcm + eye.d_vc * self.mis(eye_rev_pdf_w));
+            * (self.vm_term(eye_merge) + eye.d_vcm + eye.d_vc * self.mis(eye_rev_pdf_w));
         1.0 / (w_light + 1.0 + w_camera)
     }
 
     /// A light vertex connected to the camera (t = 1; 001 eqs. (46)-(47)): `camera_pdf_a` the
     /// per-pixel area pdf of the vertex as seen from the camera.
-    pub fn to_camera(&self, light: &VcmVertex, camera_pdf_a: f32, rev_pdf_w: f32) -> f32 {
+    pub fn to_camera(
+        &self,
+        light: &VcmVertex,
+        light_merge: bool,
+        camera_pdf_a: f32,
+        rev_pdf_w: f32,
+    ) -> f32 {
         let w_light = self.mis(camera_pdf_a / self.light_paths)
-            * (self.vm_factor + light.d_vcm + light.d_vc * self.mis(rev_pdf_w));
+            * (self.vm_term(light_merge) + light.d_vcm + light.d_vc * self.mis(rev_pdf_w));
         1.0 / (w_light + 1.0)
     }
 
@@ -362,4 +420,6 @@ pub struct VcmVertex {
     pub d_vcm: f32,
     pub d_vc: f32,
     pub d_vm: f32,
+    /// The factor of a [`VmHere::Deferred`] merge term, until [`VcmWeights::resolve`].
+    pub pending_vm: f32,
 }

@@ -51,12 +51,63 @@ impl Technique {
 }
 
 /// Counters an iteration reports besides its image.
-#[derive(Clone, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct IterationStats {
     /// Samples dropped for being NaN or infinite.
     pub dropped_samples: u64,
-    /// Rays traced (closest-hit and shadow), for the samples-per-second display.
+    /// Rays traced (closest-hit, shadow and tentative), for the samples-per-second display.
     pub rays: u64,
+    pub upg: UpgCounters,
+}
+
+impl std::ops::Add for IterationStats {
+    type Output = IterationStats;
+    fn add(self, other: IterationStats) -> IterationStats {
+        IterationStats {
+            dropped_samples: self.dropped_samples + other.dropped_samples,
+            rays: self.rays + other.rays,
+            upg: self.upg + other.upg,
+        }
+    }
+}
+
+/// The tentative-ray work of unbiased photon gathering (000 Table 3.2).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct UpgCounters {
+    /// Merges whose 1/p_acc was estimated.
+    pub merges: u64,
+    /// Bernoulli trials, and the tentative rays traced for them (a trial whose direction
+    /// misses the gathering sphere needs no ray).
+    pub trials: u64,
+    pub tentative_rays: u64,
+    /// Merges dropped at the trial cap.
+    pub capped: u64,
+}
+
+impl std::ops::Add for UpgCounters {
+    type Output = UpgCounters;
+    fn add(self, other: UpgCounters) -> UpgCounters {
+        UpgCounters {
+            merges: self.merges + other.merges,
+            trials: self.trials + other.trials,
+            tentative_rays: self.tentative_rays + other.tentative_rays,
+            capped: self.capped + other.capped,
+        }
+    }
+}
+
+impl UpgCounters {
+    /// Metadata entries: the thesis reports about 2.81 trials per merge (000 sec. 2.4.3).
+    pub fn statistics(&self) -> Vec<(String, String)> {
+        let per_merge = |n: u64| format!("{:.3}", n as f64 / self.merges.max(1) as f64);
+        vec![
+            ("upg_merges".into(), self.merges.to_string()),
+            ("upg_trials_per_merge".into(), per_merge(self.trials)),
+            ("upg_rays_per_merge".into(), per_merge(self.tentative_rays)),
+            ("upg_tentative_rays".into(), self.tentative_rays.to_string()),
+            ("upg_capped_merges".into(), self.capped.to_string()),
+        ]
+    }
 }
 
 /// Everything an integrator needs that does not change between iterations.
@@ -97,9 +148,11 @@ pub fn create<'a>(ctx: RenderContext<'a>) -> Box<dyn Integrator + 'a> {
     match ctx.options.technique {
         Technique::Pt => Box::new(pt::PathTracer::new(ctx)),
         Technique::Bpt => Box::new(bpt::Bpt::new(ctx)),
-        Technique::Lt | Technique::Ppm | Technique::Bpm | Technique::Vcm => {
-            Box::new(vcm::VertexCm::new(ctx))
-        }
-        Technique::Upg | Technique::UpgCamera => todo!("{}", ctx.options.technique.name()),
+        Technique::Lt
+        | Technique::Ppm
+        | Technique::Bpm
+        | Technique::Vcm
+        | Technique::Upg
+        | Technique::UpgCamera => Box::new(vcm::VertexCm::new(ctx)),
     }
 }

@@ -179,9 +179,6 @@ impl Integrator for PathTracer<'_> {
                 }
                 stats
             })
-            .reduce(IterationStats::default, |a, b| IterationStats {
-                dropped_samples: a.dropped_samples + b.dropped_samples,
-                rays: a.rays + b.rays,
-            })
+            .reduce(IterationStats::default, |a, b| a + b)
     }
 }

@@ -14,10 +14,11 @@
 //! Russian roulette is left out of the pdfs the weights use: weights only need to sum to one
 //! over the techniques, and every technique evaluates the same pdfs.
 
-use super::mis::{Power, VcmVertex, VcmWeights};
-use super::{Integrator, IterationStats, RenderContext, Technique};
+use super::mis::{Power, VcmVertex, VcmWeights, VmHere};
+use super::upg::acceptance::{AngularBound, Estimator, Outcome, PacketWidth};
+use super::{Integrator, IterationStats, RenderContext, Technique, UpgCounters};
 use crate::accel::Ray;
-use crate::bsdf::{Bsdf, TransportMode};
+use crate::bsdf::{Bsdf, BsdfEval, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::hashgrid::HashGrid;
@@ -40,6 +41,19 @@ struct Modes {
     ppm: bool,
     /// Light tracing alone: light vertices splatted to the camera with weight 1.
     light_trace: bool,
+    /// How a merge is made.
+    merge: Merge,
+}
+
+/// Vertex merging by density estimation (001), or unbiased photon gathering from either side
+/// (000 sec. 2.4.3): an explicit connection whose pdf holds the estimated 1/p_acc.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Merge {
+    Density,
+    /// `upg`: the light vertex's predecessor is connected to the eye vertex.
+    UpgLight,
+    /// `upg-camera`: the eye vertex's predecessor is connected to the light vertex.
+    UpgCamera,
 }
 
 impl Modes {
@@ -48,13 +62,34 @@ impl Modes {
             Technique::Lt => (false, false, false, true),
             Technique::Ppm => (false, true, true, false),
             Technique::Bpm => (false, true, false, false),
+            Technique::Upg | Technique::UpgCamera => (true, true, false, false),
             _ => (!no_vc, !no_vm, false, false),
+        };
+        let merge = match technique {
+            Technique::Upg => Merge::UpgLight,
+            Technique::UpgCamera => Merge::UpgCamera,
+            _ => Merge::Density,
         };
         Modes {
             vc,
             vm,
             ppm,
             light_trace,
+            merge,
+        }
+    }
+
+    /// Whether merging at the vertex a sub-path scatters from is a technique. UPG's tentative
+    /// rays leave from the merge vertex's neighbour on the gathering side, which must be a
+    /// non-delta surface vertex: on the light side for `upg` (known: the previous vertex),
+    /// on the eye side for `upg-camera` (known for the eye sub-path, the next vertex for the
+    /// light sub-path).
+    fn merge_here(&self, light_side: bool, prev_surface: bool) -> VmHere {
+        let known = |ok: bool| if ok { VmHere::Valid } else { VmHere::Invalid };
+        match (self.merge, light_side) {
+            (Merge::Density, _) => VmHere::Valid,
+            (Merge::UpgLight, true) | (Merge::UpgCamera, false) => known(prev_surface),
+            (Merge::UpgLight, false) | (Merge::UpgCamera, true) => VmHere::Deferred,
         }
     }
 }
@@ -72,6 +107,9 @@ pub struct LightVertex {
     /// Segments from the light to this vertex.
     pub path_length: u32,
     pub mis: VcmVertex,
+    /// The previous vertex of the sub-path is a non-delta surface vertex, stored just before
+    /// this one.
+    pub after_surface: bool,
 }
 
 /// What one task of the light pass produces: vertices and where each path's end, camera
@@ -94,7 +132,21 @@ struct SubPath {
     finite_light: bool,
     /// Eye sub-paths: every scattering so far was a delta lobe.
     specular: bool,
+    /// The vertex the ray left from is a non-delta surface vertex.
+    prev_surface: bool,
     mis: VcmVertex,
+}
+
+/// The last eye vertex, kept for `upg-camera`'s merges at the next one.
+#[derive(Clone)]
+struct EyeVertex<'b> {
+    hit: SurfaceHit,
+    bsdf: Bsdf<'b>,
+    /// Throughput and MIS quantities on arrival, before scattering on.
+    throughput: Rgb,
+    mis: VcmVertex,
+    prev_surface: bool,
+    path_length: u32,
 }
 
 pub struct VertexCm<'a> {
@@ -102,8 +154,12 @@ pub struct VertexCm<'a> {
     modes: Modes,
     base_radius: f32,
     alpha: f32,
+    /// UPG's estimator of 1/p_acc.
+    estimator: Estimator,
     /// Light vertices stored in the last iteration, for the statistics.
     stored_vertices: usize,
+    /// UPG's counters over all iterations so far.
+    upg: UpgCounters,
 }
 
 impl<'a> VertexCm<'a> {
@@ -111,17 +167,28 @@ impl<'a> VertexCm<'a> {
         let o = ctx.options;
         let modes = Modes::for_technique(o.technique, o.no_vc, o.no_vm);
         let base_radius = o.radius.unwrap_or_else(|| ctx.scene.default_radius());
-        let alpha = if modes.vm {
+        // UPG is unbiased at any radius: it keeps its radius (000 sec. 2.4.6).
+        let alpha = if modes.vm && modes.merge == Merge::Density {
             o.alpha.unwrap_or(0.75)
         } else {
             1.0
+        };
+        let estimator = Estimator {
+            packet: if o.upg_packet == 8 {
+                PacketWidth::Eight
+            } else {
+                PacketWidth::One
+            },
+            max_trials: o.upg_max_trials,
         };
         VertexCm {
             ctx,
             modes,
             base_radius,
             alpha,
+            estimator,
             stored_vertices: 0,
+            upg: UpgCounters::default(),
         }
     }
 
@@ -171,6 +238,7 @@ impl<'a> VertexCm<'a> {
             path_length: 1,
             finite_light: light.is_finite(),
             specular: false,
+            prev_surface: false,
             mis: w.light_origin(direct_pdf_a, emission_pdf_w, cos_at_light, light.is_delta()),
         })
     }
@@ -184,6 +252,7 @@ impl<'a> VertexCm<'a> {
         hit: &SurfaceHit,
         bsdf: &Bsdf,
         rng: &mut Rng,
+        light_side: bool,
     ) -> Option<()> {
         let s = bsdf.sample([rng.next_f32(), rng.next_f32(), rng.next_f32()])?;
         if state.path_length >= self.ctx.options.roulette {
@@ -194,7 +263,16 @@ impl<'a> VertexCm<'a> {
             state.throughput /= q;
         }
         let cos_out = bsdf.cos_theta(s.wi);
-        w.scatter(&mut state.mis, cos_out, s.pdf_w, s.rev_pdf_w, s.delta);
+        let merge_here = self.modes.merge_here(light_side, state.prev_surface);
+        w.scatter(
+            &mut state.mis,
+            cos_out,
+            s.pdf_w,
+            s.rev_pdf_w,
+            s.delta,
+            merge_here,
+        );
+        state.prev_surface = !s.delta;
         if !s.delta {
             state.specular = false;
         }
@@ -247,6 +325,7 @@ impl<'a> VertexCm<'a> {
             let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Importance) else {
                 break;
             };
+            w.resolve(&mut state.mis, !bsdf.is_delta());
             if !bsdf.is_delta() {
                 if self.modes.vc || self.modes.vm {
                     vertices.push(LightVertex {
@@ -257,6 +336,7 @@ impl<'a> VertexCm<'a> {
                         material: hit.material,
                         path_length: state.path_length,
                         mis: state.mis,
+                        after_surface: state.prev_surface,
                     });
                 }
                 if self.modes.vc || self.modes.light_trace {
@@ -266,7 +346,10 @@ impl<'a> VertexCm<'a> {
             if state.path_length.saturating_add(2) > max_length {
                 break;
             }
-            if self.scatter(w, &mut state, &hit, &bsdf, &mut rng).is_none() {
+            if self
+                .scatter(w, &mut state, &hit, &bsdf, &mut rng, true)
+                .is_none()
+            {
                 break;
             }
         }
@@ -299,7 +382,14 @@ impl<'a> VertexCm<'a> {
         let weight = if self.modes.light_trace {
             1.0
         } else {
-            w.to_camera(&state.mis, camera_pdf_a, eval.rev_pdf_w)
+            // Merging at this vertex: `upg` needs its predecessor, `upg-camera` the camera as
+            // the neighbour the tentative rays would leave from, which cannot be.
+            let merge_here = match self.modes.merge {
+                Merge::Density => true,
+                Merge::UpgLight => state.prev_surface,
+                Merge::UpgCamera => false,
+            };
+            w.to_camera(&state.mis, merge_here, camera_pdf_a, eval.rev_pdf_w)
         };
         let contribution = state.throughput * eval.f * (weight * camera_pdf_a / w.light_paths);
         stats.rays += 1;
@@ -377,8 +467,15 @@ impl<'a> VertexCm<'a> {
             return Rgb::BLACK;
         }
         let cos_to_light = bsdf.cos_theta(il.dir_to_light);
+        // Merging here: `upg` would gather from the light point itself, which it does not.
+        let merge_here = match self.modes.merge {
+            Merge::Density => true,
+            Merge::UpgLight => false,
+            Merge::UpgCamera => state.prev_surface,
+        };
         let weight = w.light_sample(
             &state.mis,
+            merge_here,
             eval.pdf_w,
             eval.rev_pdf_w,
             pick * il.direct_pdf_w,
@@ -438,9 +535,19 @@ impl<'a> VertexCm<'a> {
         // Solid-angle pdfs turned into area pdfs at the other end.
         let eye_pdf_a = eye_eval.pdf_w * cos_light / dist2;
         let light_pdf_a = light_eval.pdf_w * cos_eye / dist2;
+        // Merging at either end: each end's neighbour across the connection is a non-delta
+        // surface vertex; `upg` also needs the light vertex's predecessor to be one, and
+        // `upg-camera` the eye vertex's.
+        let (light_merge, eye_merge) = match self.modes.merge {
+            Merge::Density => (true, true),
+            Merge::UpgLight => (lv.after_surface, true),
+            Merge::UpgCamera => (true, state.prev_surface),
+        };
         let weight = w.connect(
             &lv.mis,
+            light_merge,
             &state.mis,
+            eye_merge,
             light_eval.rev_pdf_w,
             eye_eval.rev_pdf_w,
             light_pdf_a,
@@ -491,6 +598,230 @@ impl<'a> VertexCm<'a> {
         sum
     }
 
+    /// `upg`: gathers the light vertices within r of the eye vertex `hit` whose predecessor Q is
+    /// a non-delta surface vertex, and for each connects Q to the eye vertex explicitly (000
+    /// eq. 2.67), the tentative rays from Q estimating 1/p_acc (000 eq. 2.65).
+    #[allow(clippy::too_many_arguments)]
+    fn merge_upg_light(
+        &self,
+        w: &VcmWeights,
+        state: &SubPath,
+        bsdf: &Bsdf,
+        hit: &SurfaceHit,
+        grid: &HashGrid,
+        vertices: &[LightVertex],
+        tentative: &mut TentativeStream,
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let max_length = self.ctx.max_path_length();
+        let mut sum = Rgb::BLACK;
+        grid.query(hit.position, |i, _| {
+            let photon = &vertices[i];
+            if !photon.after_surface {
+                return;
+            }
+            let q = &vertices[i - 1];
+            if q.path_length + 1 + state.path_length > max_length {
+                return;
+            }
+            let Some(q_bsdf) = self.bsdf_at(q.material, q.ng, q.wo, TransportMode::Importance)
+            else {
+                return;
+            };
+            let Some(link) = self.link(&q_bsdf, q.position, q.ng, bsdf, hit, stats) else {
+                return;
+            };
+            let Some(inv_p_acc) = self.inverse_acceptance(
+                &q_bsdf,
+                q.position,
+                q.ng,
+                hit.position,
+                w,
+                tentative,
+                stats,
+            ) else {
+                return;
+            };
+            // The light sub-path's quantities as they would be at the eye vertex.
+            let mut light = q.mis;
+            let merge_at_q = self.modes.merge_here(true, q.after_surface);
+            w.scatter(
+                &mut light,
+                link.cos_from,
+                link.from_eval.pdf_w,
+                link.from_eval.rev_pdf_w,
+                false,
+                merge_at_q,
+            );
+            w.arrive(&mut light, link.distance, link.cos_to, true);
+            let weight = w.merge(
+                &light,
+                &state.mis,
+                link.to_eval.pdf_w,
+                link.to_eval.rev_pdf_w,
+            );
+            let roulette = self.roulette_probability(&q_bsdf, q.path_length);
+            sum += q.throughput * link.value * (weight * inv_p_acc / roulette);
+        });
+        sum
+    }
+
+    /// `upg-camera`: gathers the light vertices within r of the eye vertex the eye sub-path just
+    /// reached, and connects each to the previous eye vertex `prev` explicitly, the tentative
+    /// rays from `prev` estimating 1/p_acc (000 sec. 2.4.3, UPG*).
+    #[allow(clippy::too_many_arguments)]
+    fn merge_upg_camera(
+        &self,
+        w: &VcmWeights,
+        prev: &EyeVertex,
+        position: Vec3,
+        grid: &HashGrid,
+        vertices: &[LightVertex],
+        tentative: &mut TentativeStream,
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let max_length = self.ctx.max_path_length();
+        let mut sum = Rgb::BLACK;
+        grid.query(position, |i, _| {
+            let photon = &vertices[i];
+            if photon.path_length + 1 + prev.path_length > max_length {
+                return;
+            }
+            let Some(p_bsdf) = self.bsdf_at(
+                photon.material,
+                photon.ng,
+                photon.wo,
+                TransportMode::Importance,
+            ) else {
+                return;
+            };
+            let (p_hit_position, p_ng) = (photon.position, photon.ng);
+            let Some(link) = self.link_to_photon(prev, &p_bsdf, p_hit_position, p_ng, stats) else {
+                return;
+            };
+            let Some(inv_p_acc) = self.inverse_acceptance(
+                &prev.bsdf,
+                prev.hit.position,
+                prev.hit.ng,
+                photon.position,
+                w,
+                tentative,
+                stats,
+            ) else {
+                return;
+            };
+            // The eye sub-path's quantities as they would be at the light vertex.
+            let mut eye = prev.mis;
+            let merge_at_prev = self.modes.merge_here(false, prev.prev_surface);
+            w.scatter(
+                &mut eye,
+                link.cos_from,
+                link.from_eval.pdf_w,
+                link.from_eval.rev_pdf_w,
+                false,
+                merge_at_prev,
+            );
+            w.arrive(&mut eye, link.distance, link.cos_to, true);
+            // At the merge vertex the eye side samples towards the light vertex's predecessor:
+            // the photon's BSDF pdfs, seen the other way round.
+            let weight = w.merge(
+                &photon.mis,
+                &eye,
+                link.to_eval.rev_pdf_w,
+                link.to_eval.pdf_w,
+            );
+            let roulette = self.roulette_probability(&prev.bsdf, prev.path_length);
+            sum +=
+                prev.throughput * photon.throughput * link.value * (weight * inv_p_acc / roulette);
+        });
+        sum
+    }
+
+    fn bsdf_at(&self, material: u32, ng: Vec3, wo: Vec3, mode: TransportMode) -> Option<Bsdf<'_>> {
+        Bsdf::new(&self.scene().material(material).kind, ng, wo, mode)
+    }
+
+    /// The probability that Russian roulette let a sub-path go on from a vertex.
+    fn roulette_probability(&self, bsdf: &Bsdf, path_length: u32) -> f32 {
+        if path_length >= self.ctx.options.roulette {
+            bsdf.continuation_probability()
+        } else {
+            1.0
+        }
+    }
+
+    /// The explicit connection of a merge, from vertex (`from`, `from_position`) to the eye
+    /// vertex `to`: both BSDFs, the geometry term and the visibility (000 eq. 2.67).
+    fn link(
+        &self,
+        from: &Bsdf,
+        from_position: Vec3,
+        from_ng: Vec3,
+        to: &Bsdf,
+        to_hit: &SurfaceHit,
+        stats: &mut IterationStats,
+    ) -> Option<Link> {
+        Link::new(from, from_position, to, to_hit.position).filter(|_| {
+            stats.rays += 1;
+            !self.scene().occluded(&Ray::spawn_between(
+                from_position,
+                from_ng,
+                to_hit.position,
+                to_hit.ng,
+            ))
+        })
+    }
+
+    /// [`Self::link`] from the previous eye vertex to a light vertex.
+    fn link_to_photon(
+        &self,
+        prev: &EyeVertex,
+        photon_bsdf: &Bsdf,
+        photon_position: Vec3,
+        photon_ng: Vec3,
+        stats: &mut IterationStats,
+    ) -> Option<Link> {
+        Link::new(&prev.bsdf, prev.hit.position, photon_bsdf, photon_position).filter(|_| {
+            stats.rays += 1;
+            !self.scene().occluded(&Ray::spawn_between(
+                prev.hit.position,
+                prev.hit.ng,
+                photon_position,
+                photon_ng,
+            ))
+        })
+    }
+
+    /// 1/p_acc for tentative rays from `origin` (BSDF `bsdf`) to within r of `target`; `None`
+    /// for a capped estimate (the merge is dropped and counted) or an unreachable target.
+    #[allow(clippy::too_many_arguments)]
+    fn inverse_acceptance(
+        &self,
+        bsdf: &Bsdf,
+        origin: Vec3,
+        ng: Vec3,
+        target: Vec3,
+        w: &VcmWeights,
+        tentative: &mut TentativeStream,
+        stats: &mut IterationStats,
+    ) -> Option<f32> {
+        let bound = AngularBound::new(origin, ng, bsdf, target, w.radius).ok()?;
+        let mut rng = tentative.next_rng();
+        let estimate = self.estimator.estimate(self.scene(), &bound, &mut rng);
+        stats.upg.merges += 1;
+        stats.upg.trials += estimate.trials as u64;
+        stats.upg.tentative_rays += estimate.rays as u64;
+        stats.rays += estimate.rays as u64;
+        match estimate.outcome {
+            Outcome::Estimate(inv) => Some(inv),
+            Outcome::Capped => {
+                stats.upg.capped += 1;
+                None
+            }
+            Outcome::Unreachable => None,
+        }
+    }
+
     /// Traces the eye sub-path of one pixel and returns its estimate.
     #[allow(clippy::too_many_arguments)]
     fn trace_eye_path(
@@ -504,7 +835,9 @@ impl<'a> VertexCm<'a> {
         stats: &mut IterationStats,
     ) -> Rgb {
         let camera = &self.ctx.camera;
-        let mut rng = Rng::for_sample(self.ctx.options.seed, iteration, pixel as u64, Stream::Eye);
+        let seed = self.ctx.options.seed;
+        let mut rng = Rng::for_sample(seed, iteration, pixel as u64, Stream::Eye);
+        let mut tentative = TentativeStream::new(seed, iteration, pixel);
         let width = camera.width as usize;
         let [jx, jy] = rng.next_2d();
         let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
@@ -516,10 +849,12 @@ impl<'a> VertexCm<'a> {
             path_length: 1,
             finite_light: true,
             specular: true,
+            prev_surface: false,
             mis: w.camera_origin(camera_pdf_w),
         };
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
+        let mut prev: Option<EyeVertex> = None;
         loop {
             stats.rays += 1;
             let Some(hit) = self.scene().intersect(&state.ray) else {
@@ -528,6 +863,19 @@ impl<'a> VertexCm<'a> {
             };
             let dir = state.ray.dir.normalize();
             self.arrive(w, &mut state, &hit, false);
+            // `upg-camera` merges wherever the sub-path lands: what is merged is the light
+            // vertex, reached from the previous eye vertex.
+            if let (Some(grid), Some(prev)) = (grid, prev.as_ref()) {
+                color += self.merge_upg_camera(
+                    w,
+                    prev,
+                    hit.position,
+                    grid,
+                    vertices,
+                    &mut tentative,
+                    stats,
+                ) * (1.0 / w.light_paths);
+            }
             color += state.throughput * self.emission(w, &state, Some(&hit));
             // Light tracing renders everything else from the light side.
             if self.modes.light_trace || state.path_length >= max_length {
@@ -537,6 +885,7 @@ impl<'a> VertexCm<'a> {
             let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Radiance) else {
                 break;
             };
+            w.resolve(&mut state.mis, !bsdf.is_delta());
             if !bsdf.is_delta() {
                 if self.modes.vc {
                     color += state.throughput
@@ -548,19 +897,116 @@ impl<'a> VertexCm<'a> {
                         color += state.throughput * self.connect(w, &state, &hit, &bsdf, lv, stats);
                     }
                 }
-                if let Some(grid) = grid {
-                    let merged = self.merge(w, &state, &bsdf, &hit, grid, vertices);
-                    color += state.throughput * merged * w.vm_normalization;
-                    if self.modes.ppm {
-                        break;
+                match (grid, self.modes.merge) {
+                    (Some(grid), Merge::Density) => {
+                        let merged = self.merge(w, &state, &bsdf, &hit, grid, vertices);
+                        color += state.throughput * merged * w.vm_normalization;
+                        if self.modes.ppm {
+                            break;
+                        }
                     }
+                    (Some(grid), Merge::UpgLight) => {
+                        let merged = self.merge_upg_light(
+                            w,
+                            &state,
+                            &bsdf,
+                            &hit,
+                            grid,
+                            vertices,
+                            &mut tentative,
+                            stats,
+                        );
+                        color += state.throughput * merged * (1.0 / w.light_paths);
+                    }
+                    _ => {}
                 }
             }
-            if self.scatter(w, &mut state, &hit, &bsdf, &mut rng).is_none() {
+            let before =
+                (!bsdf.is_delta() && self.modes.merge == Merge::UpgCamera).then(|| EyeVertex {
+                    hit,
+                    bsdf: bsdf.clone(),
+                    throughput: state.throughput,
+                    mis: state.mis,
+                    prev_surface: state.prev_surface,
+                    path_length: state.path_length,
+                });
+            if self
+                .scatter(w, &mut state, &hit, &bsdf, &mut rng, false)
+                .is_none()
+            {
                 break;
             }
+            prev = before;
         }
         color
+    }
+}
+
+/// The explicit connection of a UPG merge between a vertex and the vertex it gathers at.
+struct Link {
+    /// f_from * G * f_to (000 eq. 2.67) without visibility.
+    value: Rgb,
+    /// The first vertex's pdfs towards the second, and the second's back.
+    from_eval: BsdfEval,
+    to_eval: BsdfEval,
+    cos_from: f32,
+    cos_to: f32,
+    distance: f32,
+}
+
+impl Link {
+    fn new(from: &Bsdf, from_position: Vec3, to: &Bsdf, to_position: Vec3) -> Option<Link> {
+        let d = to_position - from_position;
+        let dist2 = d.length_squared();
+        if dist2 <= 0.0 {
+            return None;
+        }
+        let distance = dist2.sqrt();
+        let dir = d / distance;
+        let from_eval = from.eval(dir);
+        let to_eval = to.eval(-dir);
+        if from_eval.f.is_black() || to_eval.f.is_black() {
+            return None;
+        }
+        let (cos_from, cos_to) = (from.cos_theta(dir), to.cos_theta(-dir));
+        Some(Link {
+            value: from_eval.f * to_eval.f * (cos_from * cos_to / dist2),
+            from_eval,
+            to_eval,
+            cos_from,
+            cos_to,
+            distance,
+        })
+    }
+}
+
+/// The random numbers of one eye sub-path's tentative rays: one stream per merge, so an
+/// estimate does not depend on how many numbers the packets before it drew.
+struct TentativeStream {
+    seed: u64,
+    iteration: u64,
+    base: u64,
+    merges: u64,
+}
+
+impl TentativeStream {
+    fn new(seed: u64, iteration: u64, pixel: usize) -> Self {
+        TentativeStream {
+            seed,
+            iteration,
+            base: (pixel as u64) << 24,
+            merges: 0,
+        }
+    }
+
+    fn next_rng(&mut self) -> Rng {
+        self.merges += 1;
+        Rng::for_sample(
+            self.seed,
+            self.iteration,
+            self.base + self.merges,
+            Stream::Tentative,
+        )
     }
 }
 
@@ -632,12 +1078,9 @@ impl Integrator for VertexCm<'_> {
                 add_sample(value, color, &mut stats.dropped_samples);
                 stats
             })
-            .reduce(IterationStats::default, |a, b| IterationStats {
-                dropped_samples: a.dropped_samples + b.dropped_samples,
-                rays: a.rays + b.rays,
-            });
-        stats.rays += eye_stats.rays;
-        stats.dropped_samples += eye_stats.dropped_samples;
+            .reduce(IterationStats::default, |a, b| a + b);
+        let stats = stats + eye_stats;
+        self.upg = self.upg + stats.upg;
         stats
     }
 
@@ -656,6 +1099,9 @@ impl Integrator for VertexCm<'_> {
         if self.modes.vm {
             stats.push(("base_radius".into(), self.base_radius.to_string()));
             stats.push(("alpha".into(), self.alpha.to_string()));
+        }
+        if self.modes.merge != Merge::Density {
+            stats.extend(self.upg.statistics());
         }
         stats
     }
