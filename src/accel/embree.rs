@@ -432,3 +432,188 @@ impl Drop for EmbreeScene {
         }
     }
 }
+
+/// A triangle scene built and queried through raw `embree-sys` calls, with none of
+/// [`EmbreeScene`]'s conversions, so benchmarks can measure what the safe wrapper costs. Not
+/// part of the renderer's interface.
+#[doc(hidden)]
+pub struct RawScene {
+    device: sys::RTCDevice,
+    scene: sys::RTCScene,
+}
+
+impl RawScene {
+    /// The triangles of `geometry` (its spheres are left out), in an Embree-owned buffer.
+    pub fn build(geometry: &Geometry) -> Result<Self, AccelError> {
+        let embree_error = |device| {
+            // SAFETY: `device` is a valid device handle or null, which asks for the error of
+            // the failed device creation.
+            let code = unsafe { sys::rtcGetDeviceError(device) };
+            (code != sys::RTCError::RTC_ERROR_NONE).then(|| AccelError::Embree {
+                code: code as u32,
+                message: format!("{code:?}"),
+            })
+        };
+        if let Some(i) = geometry
+            .triangles
+            .iter()
+            .position(|t| t.iter().any(|&v| v as usize >= geometry.positions.len()))
+        {
+            return Err(AccelError::InvalidGeometry(format!(
+                "triangle {i} indexes a vertex beyond the {} given",
+                geometry.positions.len()
+            )));
+        }
+        // SAFETY: a null configuration string asks for the defaults.
+        let device = unsafe { sys::rtcNewDevice(std::ptr::null()) };
+        if device.is_null() {
+            return Err(
+                embree_error(std::ptr::null_mut()).unwrap_or(AccelError::Embree {
+                    code: 0,
+                    message: "rtcNewDevice failed".into(),
+                }),
+            );
+        }
+        // SAFETY: `device` is valid; the scene owns the geometry after attaching, so our
+        // reference is released.
+        let scene = unsafe {
+            let scene = sys::rtcNewScene(device);
+            sys::rtcSetSceneBuildQuality(scene, sys::RTCBuildQuality_RTC_BUILD_QUALITY_MEDIUM);
+            let mesh = sys::rtcNewGeometry(device, sys::RTCGeometryType_RTC_GEOMETRY_TYPE_TRIANGLE);
+            sys::rtcAttachGeometry(scene, mesh);
+            sys::rtcReleaseGeometry(mesh);
+            scene
+        };
+        let raw = RawScene { device, scene };
+        if let Some(e) = embree_error(device) {
+            return Err(e);
+        }
+        // SAFETY: geometry 0 is the mesh attached above; Embree allocates each buffer with
+        // `count * stride` bytes (plus its padding for 16-byte vertex reads), 4-byte aligned,
+        // so it is valid as a slice of that many `[f32; 3]` / `[u32; 3]` until the scene is
+        // released, and nothing else accesses it before the commit.
+        unsafe {
+            let mesh = sys::rtcGetGeometry(scene, 0);
+            let vertices = sys::rtcSetNewGeometryBuffer(
+                mesh,
+                sys::RTCBufferType_RTC_BUFFER_TYPE_VERTEX,
+                0,
+                sys::RTCFormat_RTC_FORMAT_FLOAT3,
+                12,
+                geometry.positions.len(),
+            ) as *mut [f32; 3];
+            let indices = sys::rtcSetNewGeometryBuffer(
+                mesh,
+                sys::RTCBufferType_RTC_BUFFER_TYPE_INDEX,
+                0,
+                sys::RTCFormat_RTC_FORMAT_UINT3,
+                12,
+                geometry.triangles.len(),
+            ) as *mut [u32; 3];
+            if !vertices.is_null() && !indices.is_null() {
+                std::slice::from_raw_parts_mut(vertices, geometry.positions.len())
+                    .iter_mut()
+                    .zip(&geometry.positions)
+                    .for_each(|(out, p)| *out = p.to_array());
+                std::slice::from_raw_parts_mut(indices, geometry.triangles.len())
+                    .copy_from_slice(&geometry.triangles);
+                sys::rtcCommitGeometry(mesh);
+                sys::rtcCommitScene(scene);
+            }
+        }
+        match embree_error(device) {
+            Some(e) => Err(e),
+            None => Ok(raw),
+        }
+    }
+
+    /// Closest hits of `rays` through `rtcIntersect1`; returns how many hit.
+    pub fn intersect1(&self, rays: &[Ray]) -> u64 {
+        ensure_flush_denormals();
+        let mut context = EmbreeScene::context(false);
+        let mut hits = 0;
+        for ray in rays {
+            let mut rayhit = sys::RTCRayHit {
+                ray: rtc_ray(ray),
+                hit: empty_hit(),
+            };
+            // SAFETY: the scene is committed; context and rayhit are valid for the call.
+            unsafe { sys::rtcIntersect1(self.scene, &mut context, &mut rayhit) };
+            hits += (rayhit.hit.geomID != sys::RTC_INVALID_GEOMETRY_ID) as u64;
+        }
+        hits
+    }
+
+    /// Occlusion of `rays` through `rtcOccluded1`; returns how many are occluded.
+    pub fn occluded1(&self, rays: &[Ray]) -> u64 {
+        ensure_flush_denormals();
+        let mut context = EmbreeScene::context(false);
+        let mut occluded = 0;
+        for ray in rays {
+            let mut r = rtc_ray(ray);
+            // SAFETY: as for rtcIntersect1.
+            unsafe { sys::rtcOccluded1(self.scene, &mut context, &mut r) };
+            occluded += (r.tfar == f32::NEG_INFINITY) as u64;
+        }
+        occluded
+    }
+
+    /// Closest hits of `rays`, 8 at a time through `rtcIntersect8` (a partial last packet is
+    /// left out); returns how many hit.
+    pub fn intersect8(&self, rays: &[Ray]) -> u64 {
+        ensure_flush_denormals();
+        let mut context = EmbreeScene::context(false);
+        let mut hits = 0;
+        for chunk in rays.chunks_exact(PACKET) {
+            let Ok(packet) = <&[Ray; PACKET]>::try_from(chunk) else {
+                continue;
+            };
+            let (valid, ray) = packet_rays(packet, 0xff);
+            let mut rayhit = sys::RTCRayHit8 {
+                ray,
+                hit: sys::RTCHit8 {
+                    geomID: [sys::RTC_INVALID_GEOMETRY_ID; PACKET],
+                    instID: [[sys::RTC_INVALID_GEOMETRY_ID; PACKET]],
+                    ..Default::default()
+                },
+            };
+            // SAFETY: `valid` and `rayhit` are 32-byte aligned and live for the call; the
+            // scene is committed.
+            unsafe { sys::rtcIntersect8(valid.0.as_ptr(), self.scene, &mut context, &mut rayhit) };
+            hits += rayhit
+                .hit
+                .geomID
+                .iter()
+                .filter(|&&g| g != sys::RTC_INVALID_GEOMETRY_ID)
+                .count() as u64;
+        }
+        hits
+    }
+
+    /// Occlusion of `rays`, 8 at a time through `rtcOccluded8`; returns how many are occluded.
+    pub fn occluded8(&self, rays: &[Ray]) -> u64 {
+        ensure_flush_denormals();
+        let mut context = EmbreeScene::context(false);
+        let mut occluded = 0;
+        for chunk in rays.chunks_exact(PACKET) {
+            let Ok(packet) = <&[Ray; PACKET]>::try_from(chunk) else {
+                continue;
+            };
+            let (valid, mut ray) = packet_rays(packet, 0xff);
+            // SAFETY: as for rtcIntersect8.
+            unsafe { sys::rtcOccluded8(valid.0.as_ptr(), self.scene, &mut context, &mut ray) };
+            occluded += ray.tfar.iter().filter(|&&t| t == f32::NEG_INFINITY).count() as u64;
+        }
+        occluded
+    }
+}
+
+impl Drop for RawScene {
+    fn drop(&mut self) {
+        // SAFETY: both handles are valid and owned; the scene goes before its device.
+        unsafe {
+            sys::rtcReleaseScene(self.scene);
+            sys::rtcReleaseDevice(self.device);
+        }
+    }
+}
