@@ -44,7 +44,6 @@ pub struct EmbreeScene {
     _vertices: Vec<[f32; 4]>,
     _indices: Vec<[u32; 3]>,
     _spheres: Vec<[f32; 4]>,
-    triangles: Vec<[Vec3; 3]>,
     spheres: Vec<Sphere>,
     triangle_geometry: u32,
     sphere_geometry: u32,
@@ -104,9 +103,6 @@ impl EmbreeScene {
                 .spheres
                 .iter()
                 .map(|s| [s.center.x, s.center.y, s.center.z, s.radius])
-                .collect(),
-            triangles: (0..geometry.triangles.len() as u32)
-                .map(|i| geometry.triangle_vertices(i))
                 .collect(),
             spheres: geometry.spheres.clone(),
             triangle_geometry: sys::RTC_INVALID_GEOMETRY_ID,
@@ -222,12 +218,20 @@ impl EmbreeScene {
         }
     }
 
-    fn hit(&self, geom_id: u32, prim_id: u32, t: f32, u: f32, v: f32, ray: &Ray) -> Option<Hit> {
-        // Normals are recomputed from our own copy of the vertices, so they follow the Hit
-        // contract exactly (Embree's Ng has the opposite winding convention and no unit length).
+    /// The [`Hit`] of Embree's answer for `ray`.
+    fn hit(&self, h: RawHit, ray: &Ray) -> Option<Hit> {
+        let RawHit {
+            geom_id,
+            prim_id,
+            t,
+            u,
+            v,
+            ng,
+        } = h;
         if geom_id == self.triangle_geometry {
-            let [a, b, c] = self.triangles[prim_id as usize];
-            let ng = (b - a).cross(c - a).normalize();
+            // Embree's Ng (same winding as the Hit contract, not unit length) rather than one
+            // recomputed from the vertices: reading those again is a cache miss on large meshes.
+            let ng = ng.normalize();
             Some(Hit {
                 t,
                 primitive: Primitive::Triangle(prim_id),
@@ -258,6 +262,17 @@ impl EmbreeScene {
             None
         }
     }
+}
+
+/// One ray's answer from Embree.
+struct RawHit {
+    geom_id: u32,
+    prim_id: u32,
+    t: f32,
+    u: f32,
+    v: f32,
+    /// Embree's unnormalised geometric normal.
+    ng: Vec3,
 }
 
 fn rtc_ray(ray: &Ray) -> sys::RTCRay {
@@ -360,7 +375,17 @@ impl Accel for EmbreeScene {
         if h.geomID == sys::RTC_INVALID_GEOMETRY_ID {
             return None;
         }
-        self.hit(h.geomID, h.primID, rayhit.ray.tfar, h.u, h.v, ray)
+        self.hit(
+            RawHit {
+                geom_id: h.geomID,
+                prim_id: h.primID,
+                t: rayhit.ray.tfar,
+                u: h.u,
+                v: h.v,
+                ng: Vec3::new(h.Ng_x, h.Ng_y, h.Ng_z),
+            },
+            ray,
+        )
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
@@ -393,11 +418,14 @@ impl Accel for EmbreeScene {
             let h = &rayhit.hit;
             *out = if active & (1 << i) != 0 && h.geomID[i] != sys::RTC_INVALID_GEOMETRY_ID {
                 self.hit(
-                    h.geomID[i],
-                    h.primID[i],
-                    rayhit.ray.tfar[i],
-                    h.u[i],
-                    h.v[i],
+                    RawHit {
+                        geom_id: h.geomID[i],
+                        prim_id: h.primID[i],
+                        t: rayhit.ray.tfar[i],
+                        u: h.u[i],
+                        v: h.v[i],
+                        ng: Vec3::new(h.Ng_x[i], h.Ng_y[i], h.Ng_z[i]),
+                    },
                     ray,
                 )
             } else {
