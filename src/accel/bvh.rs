@@ -1,11 +1,15 @@
-//! Pure-Rust backend: a binned-SAH bounding volume hierarchy over triangles and analytic
-//! spheres, flattened depth-first into 32-byte nodes and traversed near child first.
+//! Pure-Rust backend: a binned-SAH binary BVH over triangles and analytic spheres, collapsed
+//! into a 4-wide BVH. A wide node keeps its children's boxes as structure-of-arrays vectors,
+//! so one SIMD slab test (glam's `Vec4`) checks all four, and nodes lie in depth-first order;
+//! leaves hold up to four primitives with their triangle vertices copied in, so a leaf test
+//! reads one contiguous run of memory. Children are visited nearest first and a popped subtree
+//! farther than the closest hit so far is skipped.
 //!
 //! Triangles use the watertight test of Woop, Benthin and Wald (2013), as pbrt-v4 does, so rays
 //! through shared edges and vertices never slip between two triangles.
 
 use super::{sphere_roots, Accel, AccelError, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// Axis-aligned box.
 #[derive(Clone, Copy, Debug)]
@@ -40,29 +44,67 @@ impl Aabb {
     }
 }
 
-/// A flattened node: an inner node's first child follows it, `offset` is the second child;
-/// a leaf holds `count` primitives starting at `offset` in `Bvh::order`.
+/// A node of the binary build tree: an inner node's children are `left` and `right`; a leaf
+/// holds `count` primitives from `first` in the final primitive order.
 #[derive(Clone, Copy, Debug)]
-struct Node {
-    min: Vec3,
-    offset: u32,
-    max: Vec3,
-    /// 0 for inner nodes, otherwise the primitive count; the split axis is kept in `axis`.
-    count: u16,
-    axis: u16,
+struct BuildNode {
+    bounds: Aabb,
+    left: u32,
+    right: u32,
+    first: u32,
+    count: u32,
+}
+
+/// Children per wide node.
+const WIDTH: usize = 4;
+
+/// A wide node, 128 bytes (two cache lines).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct WideNode {
+    /// The children's boxes: min x, max x, min y, max y, min z, max z, one lane per child.
+    /// Unused lanes hold an empty box (min +inf, max -inf), which no ray enters.
+    bounds: [Vec4; 6],
+    /// Per lane, a child reference (see [`leaf_ref`]).
+    children: [u32; WIDTH],
+}
+
+/// A child reference with this bit set is a leaf: `count` in the three bits below it, the
+/// first primitive in the low 28 bits. Otherwise it is the index of a wide node.
+const LEAF: u32 = 1 << 31;
+const FIRST_BITS: u32 = 28;
+const MAX_PRIMITIVES: usize = 1 << FIRST_BITS;
+
+fn leaf_ref(first: u32, count: u32) -> u32 {
+    LEAF | (count << FIRST_BITS) | first
+}
+
+/// A primitive in leaf order; for triangles, their vertices.
+#[derive(Clone, Copy, Debug)]
+struct LeafPrim {
+    vertices: [Vec3; 3],
+    primitive: Primitive,
 }
 
 const LEAF_SIZE: usize = 4;
 const BINS: usize = 16;
 /// Relative cost of a node traversal step against one primitive test in the SAH.
 const TRAVERSAL_COST: f32 = 1.0;
+/// Below this depth of the binary tree, splits halve by count: with leaves of up to 4
+/// primitives and at most 2^28 of them the tree is then at most 48 + 26 levels deep, and each
+/// wide level pushes at most 3 entries, which bounds the traversal stack.
+const SAH_DEPTH: usize = 48;
+const STACK: usize = 3 * (SAH_DEPTH + 26) + 1;
+/// Robust slab test (Ize 2013): the far distance is widened by a few ulps so boxes of flat
+/// triangles are not missed to rounding.
+const SLAB_WIDEN: f32 = 1.0 + 4.0 * f32::EPSILON;
 
 pub struct Bvh {
-    nodes: Vec<Node>,
-    /// Primitive references in leaf order.
-    order: Vec<Primitive>,
-    /// Triangle vertices in primitive order, copied so a leaf test reads contiguous memory.
-    triangles: Vec<[Vec3; 3]>,
+    nodes: Vec<WideNode>,
+    /// What the traversal starts at (a leaf when there are at most 4 primitives); `None`
+    /// when the scene is empty.
+    root: Option<u32>,
+    prims: Vec<LeafPrim>,
     spheres: Vec<Sphere>,
 }
 
@@ -74,7 +116,13 @@ struct BuildPrim {
 
 impl Bvh {
     pub fn build(geometry: &Geometry) -> Result<Self, AccelError> {
-        let mut triangles = Vec::with_capacity(geometry.triangles.len());
+        let count = geometry.triangles.len() + geometry.spheres.len();
+        if count > MAX_PRIMITIVES {
+            return Err(AccelError::InvalidGeometry(format!(
+                "{count} primitives, more than the {MAX_PRIMITIVES} the BVH addresses"
+            )));
+        }
+        let mut prims: Vec<BuildPrim> = Vec::with_capacity(count);
         for (i, tri) in geometry.triangles.iter().enumerate() {
             if tri.iter().any(|&v| v as usize >= geometry.positions.len()) {
                 return Err(AccelError::InvalidGeometry(format!(
@@ -82,13 +130,11 @@ impl Bvh {
                     geometry.positions.len()
                 )));
             }
-            triangles.push(geometry.triangle_vertices(i as u32));
-        }
-        let mut prims: Vec<BuildPrim> =
-            Vec::with_capacity(triangles.len() + geometry.spheres.len());
-        for (i, t) in triangles.iter().enumerate() {
             let mut b = Aabb::EMPTY;
-            t.iter().for_each(|&p| b.grow_point(p));
+            geometry
+                .triangle_vertices(i as u32)
+                .iter()
+                .for_each(|&p| b.grow_point(p));
             prims.push(BuildPrim {
                 bounds: b,
                 center: b.center(),
@@ -113,95 +159,163 @@ impl Bvh {
                 primitive: Primitive::Sphere(i as u32),
             });
         }
-        let mut nodes = Vec::with_capacity(2 * prims.len() / LEAF_SIZE + 1);
-        if !prims.is_empty() {
-            build_recursive(&mut prims, 0, &mut nodes);
-        }
+        let mut binary = Vec::with_capacity(2 * prims.len() / LEAF_SIZE + 1);
+        let mut nodes = Vec::new();
+        let root = if prims.is_empty() {
+            None
+        } else {
+            build_recursive(&mut prims, 0, 0, &mut binary);
+            Some(collapse(&binary, 0, &mut nodes))
+        };
+        let prims = prims
+            .iter()
+            .map(|p| LeafPrim {
+                vertices: match p.primitive {
+                    Primitive::Triangle(i) => geometry.triangle_vertices(i),
+                    Primitive::Sphere(_) => [Vec3::ZERO; 3],
+                },
+                primitive: p.primitive,
+            })
+            .collect();
         Ok(Bvh {
             nodes,
-            order: prims.iter().map(|p| p.primitive).collect(),
-            triangles,
+            root,
+            prims,
             spheres: geometry.spheres.clone(),
         })
     }
 
     fn traverse(&self, ray: &Ray, any_hit: bool) -> Option<Hit> {
-        if self.nodes.is_empty() {
-            return None;
-        }
+        let mut current = self.root?;
         let inv_dir = ray.dir.recip();
-        let dir_negative = [inv_dir.x < 0.0, inv_dir.y < 0.0, inv_dir.z < 0.0];
+        // Per axis, which bounds lane is the near plane of a box along this ray.
+        let near = [
+            (inv_dir.x < 0.0) as usize,
+            2 + (inv_dir.y < 0.0) as usize,
+            4 + (inv_dir.z < 0.0) as usize,
+        ];
+        let far = [near[0] ^ 1, near[1] ^ 1, near[2] ^ 1];
+        let origin = [
+            Vec4::splat(ray.origin.x),
+            Vec4::splat(ray.origin.y),
+            Vec4::splat(ray.origin.z),
+        ];
+        let inv = [
+            Vec4::splat(inv_dir.x),
+            Vec4::splat(inv_dir.y),
+            Vec4::splat(inv_dir.z),
+        ];
+        let tmin = Vec4::splat(ray.tmin);
         let tri_setup = WatertightRay::new(ray);
         let mut tmax = ray.tmax;
-        let mut best: Option<Hit> = None;
-        let mut stack = [0u32; 64];
+        // The closest hit so far: (t, u, v, index into `prims`).
+        let mut best: Option<(f32, f32, f32, usize)> = None;
+        let mut stack = [(0u32, 0f32); STACK];
         let mut sp = 0usize;
-        let mut index = 0u32;
         loop {
-            let node = &self.nodes[index as usize];
-            if slab_test(node, ray.origin, inv_dir, ray.tmin, tmax) {
-                if node.count > 0 {
-                    let first = node.offset as usize;
-                    for &primitive in &self.order[first..first + node.count as usize] {
-                        let hit = match primitive {
-                            Primitive::Triangle(i) => tri_setup
-                                .intersect(&self.triangles[i as usize], ray.tmin, tmax)
-                                .map(|(t, u, v, ng)| Hit {
-                                    t,
-                                    primitive,
-                                    u,
-                                    v,
-                                    ng,
-                                }),
-                            Primitive::Sphere(i) => {
-                                let s = &self.spheres[i as usize];
-                                sphere_roots(s, ray)
-                                    .and_then(|r| {
-                                        r.into_iter().find(|&t| t >= ray.tmin && t <= tmax)
-                                    })
-                                    .map(|t| Hit {
-                                        t,
-                                        primitive,
-                                        u: 0.0,
-                                        v: 0.0,
-                                        ng: (ray.at(t) - s.center).normalize(),
-                                    })
-                            }
-                        };
-                        if let Some(hit) = hit {
-                            if any_hit {
-                                return Some(hit);
-                            }
-                            tmax = hit.t;
-                            best = Some(hit);
-                        }
+            if current & LEAF == 0 {
+                let node = &self.nodes[current as usize];
+                let axis = |k: usize, plane: usize| (node.bounds[plane] - origin[k]) * inv[k];
+                // glam's SSE max/min return their second operand when the first is NaN (an
+                // axis-parallel ray in a box's face plane): that axis then does not cull.
+                let t_near = axis(0, near[0]).max(axis(1, near[1]).max(axis(2, near[2]).max(tmin)));
+                let t_far = axis(0, far[0])
+                    .min(axis(1, far[1]).min(axis(2, far[2]).min(Vec4::splat(tmax))));
+                let mut mask = t_near.cmple(t_far * SLAB_WIDEN).bitmask();
+                match mask.count_ones() {
+                    0 => {}
+                    1 => {
+                        current = node.children[mask.trailing_zeros() as usize];
+                        continue;
                     }
-                } else {
-                    // Visit the near child first: along a negative direction the second child
-                    // (upper half of the split axis) is nearer.
-                    let (near, far) = if dir_negative[node.axis as usize] {
-                        (node.offset, index + 1)
-                    } else {
-                        (index + 1, node.offset)
+                    _ => {
+                        // Push the hit children farthest first, then descend into the nearest.
+                        let distances = t_near.to_array();
+                        let mut hits = [(0u32, 0f32); WIDTH];
+                        let mut n = 0;
+                        while mask != 0 {
+                            let lane = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            let entry = (node.children[lane], distances[lane]);
+                            let mut k = n;
+                            while k > 0 && hits[k - 1].1 < entry.1 {
+                                hits[k] = hits[k - 1];
+                                k -= 1;
+                            }
+                            hits[k] = entry;
+                            n += 1;
+                        }
+                        stack[sp..sp + n - 1].copy_from_slice(&hits[..n - 1]);
+                        sp += n - 1;
+                        current = hits[n - 1].0;
+                        continue;
+                    }
+                }
+            } else {
+                let first = (current & (MAX_PRIMITIVES as u32 - 1)) as usize;
+                let count = ((current & !LEAF) >> FIRST_BITS) as usize;
+                for k in first..first + count {
+                    let prim = &self.prims[k];
+                    let hit = match prim.primitive {
+                        Primitive::Triangle(_) => {
+                            tri_setup.intersect(&prim.vertices, ray.tmin, tmax)
+                        }
+                        Primitive::Sphere(i) => sphere_roots(&self.spheres[i as usize], ray)
+                            .and_then(|r| r.into_iter().find(|&t| t >= ray.tmin && t <= tmax))
+                            .map(|t| (t, 0.0, 0.0)),
                     };
-                    stack[sp] = far;
-                    sp += 1;
-                    index = near;
-                    continue;
+                    if let Some((t, u, v)) = hit {
+                        best = Some((t, u, v, k));
+                        if any_hit {
+                            return best.map(|hit| self.hit(ray, hit));
+                        }
+                        tmax = t;
+                    }
                 }
             }
-            if sp == 0 {
-                break;
+            // Pop the next subtree that may still hold a hit nearer than the closest so far.
+            loop {
+                if sp == 0 {
+                    return best.map(|hit| self.hit(ray, hit));
+                }
+                sp -= 1;
+                let (next, t_near) = stack[sp];
+                if t_near <= tmax {
+                    current = next;
+                    break;
+                }
             }
-            sp -= 1;
-            index = stack[sp];
         }
-        best
+    }
+
+    /// The [`Hit`] of `(t, u, v, index into prims)`, its normal computed once per query.
+    fn hit(&self, ray: &Ray, (t, u, v, k): (f32, f32, f32, usize)) -> Hit {
+        let prim = &self.prims[k];
+        let ng = match prim.primitive {
+            Primitive::Triangle(_) => {
+                let [a, b, c] = prim.vertices;
+                (b - a).cross(c - a).normalize()
+            }
+            Primitive::Sphere(i) => (ray.at(t) - self.spheres[i as usize].center).normalize(),
+        };
+        Hit {
+            t,
+            primitive: prim.primitive,
+            u,
+            v,
+            ng,
+        }
     }
 }
 
-/// Builds the subtree over `prims`, which start at index `base` of the final primitive order.
-fn build_recursive(prims: &mut [BuildPrim], base: u32, nodes: &mut Vec<Node>) -> u32 {
+/// Builds the binary subtree over `prims`, which start at index `base` of the final primitive
+/// order, at depth `depth`; returns its node index.
+fn build_recursive(
+    prims: &mut [BuildPrim],
+    base: u32,
+    depth: usize,
+    nodes: &mut Vec<BuildNode>,
+) -> u32 {
     let mut bounds = Aabb::EMPTY;
     let mut centers = Aabb::EMPTY;
     for p in prims.iter() {
@@ -209,19 +323,14 @@ fn build_recursive(prims: &mut [BuildPrim], base: u32, nodes: &mut Vec<Node>) ->
         centers.grow_point(p.center);
     }
     let index = nodes.len() as u32;
-    nodes.push(Node {
-        min: bounds.min,
-        offset: 0,
-        max: bounds.max,
-        count: 0,
-        axis: 0,
+    nodes.push(BuildNode {
+        bounds,
+        left: 0,
+        right: 0,
+        first: base,
+        count: prims.len() as u32,
     });
-    let leaf = |nodes: &mut Vec<Node>, offset: u32, count: usize| {
-        nodes[index as usize].offset = offset;
-        nodes[index as usize].count = count as u16;
-    };
     if prims.len() <= 1 {
-        leaf(nodes, base, prims.len());
         return index;
     }
     let extent = centers.max - centers.min;
@@ -233,7 +342,7 @@ fn build_recursive(prims: &mut [BuildPrim], base: u32, nodes: &mut Vec<Node>) ->
         2
     };
     let mut split = None;
-    if extent[axis] > 0.0 {
+    if extent[axis] > 0.0 && depth < SAH_DEPTH {
         // Binned SAH (Wald 2007): cost of splitting after each bin boundary.
         let mut bins = [(Aabb::EMPTY, 0usize); BINS];
         let scale = BINS as f32 / extent[axis];
@@ -274,11 +383,8 @@ fn build_recursive(prims: &mut [BuildPrim], base: u32, nodes: &mut Vec<Node>) ->
     }
     let mid = match split {
         Some(mid) if mid > 0 && mid < prims.len() => mid,
-        _ if prims.len() <= LEAF_SIZE => {
-            leaf(nodes, base, prims.len());
-            return index;
-        }
-        // All centres coincide (or SAH found no split): halve by count along the axis.
+        _ if prims.len() <= LEAF_SIZE => return index,
+        // All centres coincide, SAH found no split, or the tree is deep: halve by count.
         _ => {
             let mid = prims.len() / 2;
             prims.select_nth_unstable_by(mid, |a, b| a.center[axis].total_cmp(&b.center[axis]));
@@ -286,11 +392,61 @@ fn build_recursive(prims: &mut [BuildPrim], base: u32, nodes: &mut Vec<Node>) ->
         }
     };
     let (left, right) = prims.split_at_mut(mid);
-    build_recursive(left, base, nodes);
-    let second = build_recursive(right, base + mid as u32, nodes);
-    nodes[index as usize].offset = second;
-    nodes[index as usize].axis = axis as u16;
+    let left = build_recursive(left, base, depth + 1, nodes);
+    let right = build_recursive(right, base + mid as u32, depth + 1, nodes);
+    let node = &mut nodes[index as usize];
+    (node.left, node.right, node.count) = (left, right, 0);
     index
+}
+
+/// Collapses the binary subtree at `index` into wide nodes appended to `wide` (depth first);
+/// returns its child reference. A wide node takes the binary node's two children and keeps
+/// opening the inner one with the largest surface area (the most likely to be entered) until
+/// it has four.
+fn collapse(binary: &[BuildNode], index: u32, wide: &mut Vec<WideNode>) -> u32 {
+    let node = &binary[index as usize];
+    if node.count > 0 {
+        return leaf_ref(node.first, node.count);
+    }
+    let mut kids = vec![node.left, node.right];
+    while kids.len() < WIDTH {
+        let open = kids
+            .iter()
+            .enumerate()
+            .filter(|(_, &k)| binary[k as usize].count == 0)
+            .max_by(|(_, &a), (_, &b)| {
+                let area = |k: u32| binary[k as usize].bounds.surface_area();
+                area(a).total_cmp(&area(b))
+            })
+            .map(|(i, _)| i);
+        let Some(i) = open else { break };
+        let k = &binary[kids[i] as usize];
+        kids[i] = k.left;
+        kids.push(k.right);
+    }
+    let slot = wide.len();
+    wide.push(WideNode {
+        bounds: [
+            Vec4::INFINITY,
+            Vec4::NEG_INFINITY,
+            Vec4::INFINITY,
+            Vec4::NEG_INFINITY,
+            Vec4::INFINITY,
+            Vec4::NEG_INFINITY,
+        ],
+        children: [0; WIDTH],
+    });
+    for (lane, &k) in kids.iter().enumerate() {
+        let b = binary[k as usize].bounds;
+        let child = collapse(binary, k, wide);
+        let w = &mut wide[slot];
+        for axis in 0..3 {
+            w.bounds[2 * axis][lane] = b.min[axis];
+            w.bounds[2 * axis + 1][lane] = b.max[axis];
+        }
+        w.children[lane] = child;
+    }
+    slot as u32
 }
 
 fn partition(prims: &mut [BuildPrim], left: impl Fn(&BuildPrim) -> bool) -> usize {
@@ -302,17 +458,6 @@ fn partition(prims: &mut [BuildPrim], left: impl Fn(&BuildPrim) -> bool) -> usiz
         }
     }
     i
-}
-
-#[inline]
-fn slab_test(node: &Node, origin: Vec3, inv_dir: Vec3, tmin: f32, tmax: f32) -> bool {
-    let t0 = (node.min - origin) * inv_dir;
-    let t1 = (node.max - origin) * inv_dir;
-    // max/min ignore NaN from 0 * inf on an axis-parallel ray through a slab face.
-    let near = t0.min(t1).max_element().max(tmin);
-    let far = t0.max(t1).min_element().min(tmax);
-    // Robust slab test (Ize 2013): widen by 2 ulp-ish so boxes of flat triangles are not missed.
-    near <= far * (1.0 + 2.0 * f32::EPSILON * 2.0)
 }
 
 /// Per-ray precomputation of the watertight triangle test.
@@ -349,9 +494,9 @@ impl WatertightRay {
         }
     }
 
-    /// `(t, u, v, unit normal)` of a hit with `t` in `[tmin, tmax]`.
+    /// `(t, u, v)` of a hit with `t` in `[tmin, tmax]`.
     #[inline]
-    fn intersect(&self, tri: &[Vec3; 3], tmin: f32, tmax: f32) -> Option<(f32, f32, f32, Vec3)> {
+    fn intersect(&self, tri: &[Vec3; 3], tmin: f32, tmax: f32) -> Option<(f32, f32, f32)> {
         let (kx, ky, kz, s) = (self.kx, self.ky, self.kz, self.shear);
         let rel = |p: Vec3| {
             let p = p - self.origin;
@@ -384,8 +529,7 @@ impl WatertightRay {
             return None;
         }
         // u weighs vertex 0 here; the Hit contract's (u, v) weigh vertices 1 and 2.
-        let ng = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
-        Some((t, v * inv_det, w * inv_det, ng))
+        Some((t, v * inv_det, w * inv_det))
     }
 }
 
