@@ -1,9 +1,10 @@
 //! Pure-Rust backend: a binned-SAH binary BVH over triangles and analytic spheres, collapsed
 //! into a 4-wide BVH. A wide node keeps its children's boxes as structure-of-arrays vectors,
-//! so one SIMD slab test (glam's `Vec4`) checks all four, and nodes lie in depth-first order;
-//! leaves hold up to four primitives with their triangle vertices copied in, so a leaf test
-//! reads one contiguous run of memory. Children are visited nearest first and a popped subtree
-//! farther than the closest hit so far is skipped.
+//! so one SIMD slab test (glam's `Vec4`) checks all four, and nodes lie in depth-first order.
+//! A leaf holds up to four triangles with their vertices copied in as structure-of-arrays
+//! vectors, so one contiguous read and one SIMD triangle test serve the whole leaf (spheres,
+//! rare, sit beside it in a side table). Children are visited nearest first and a popped
+//! subtree farther than the closest hit so far is skipped.
 //!
 //! Triangles use the watertight test of Woop, Benthin and Wald (2013), as pbrt-v4 does, so rays
 //! through shared edges and vertices never slip between two triangles.
@@ -69,21 +70,22 @@ struct WideNode {
     children: [u32; WIDTH],
 }
 
-/// A child reference with this bit set is a leaf: `count` in the three bits below it, the
-/// first primitive in the low 28 bits. Otherwise it is the index of a wide node.
+/// A child reference with this bit set is the index of a [`Leaf`] in its low bits, otherwise
+/// that of a wide node. [`HAS_SPHERES`] marks leaves with spheres.
 const LEAF: u32 = 1 << 31;
-const FIRST_BITS: u32 = 28;
-const MAX_PRIMITIVES: usize = 1 << FIRST_BITS;
+const HAS_SPHERES: u32 = 1 << 30;
+const INDEX_MASK: u32 = HAS_SPHERES - 1;
+const MAX_PRIMITIVES: usize = 1 << 28;
 
-fn leaf_ref(first: u32, count: u32) -> u32 {
-    LEAF | (count << FIRST_BITS) | first
-}
-
-/// A primitive in leaf order; for triangles, their vertices.
+/// Up to four triangles, structure-of-arrays: `vertices[j][axis]` holds coordinate `axis` of
+/// vertex `j` of the triangle in each lane. Unused lanes hold NaN, which no test accepts.
 #[derive(Clone, Copy, Debug)]
-struct LeafPrim {
-    vertices: [Vec3; 3],
-    primitive: Primitive,
+struct Leaf {
+    vertices: [[Vec4; 3]; 3],
+    /// The triangle index of each lane.
+    triangles: [u32; LEAF_SIZE],
+    /// How many lanes are used.
+    count: u32,
 }
 
 const LEAF_SIZE: usize = 4;
@@ -104,8 +106,19 @@ pub struct Bvh {
     /// What the traversal starts at (a leaf when there are at most 4 primitives); `None`
     /// when the scene is empty.
     root: Option<u32>,
-    prims: Vec<LeafPrim>,
+    leaves: Vec<Leaf>,
+    /// For a leaf marked [`HAS_SPHERES`], its range `[first, end)` of `sphere_order`, by
+    /// leaf index (empty for the others).
+    leaf_spheres: Vec<[u32; 2]>,
+    sphere_order: Vec<u32>,
     spheres: Vec<Sphere>,
+}
+
+/// The closest hit so far: a lane of a leaf or a sphere.
+#[derive(Clone, Copy)]
+enum HitRef {
+    Triangle { leaf: u32, lane: usize },
+    Sphere(u32),
 }
 
 struct BuildPrim {
@@ -160,29 +173,109 @@ impl Bvh {
             });
         }
         let mut binary = Vec::with_capacity(2 * prims.len() / LEAF_SIZE + 1);
-        let mut nodes = Vec::new();
-        let root = if prims.is_empty() {
-            None
-        } else {
-            build_recursive(&mut prims, 0, 0, &mut binary);
-            Some(collapse(&binary, 0, &mut nodes))
-        };
-        let prims = prims
-            .iter()
-            .map(|p| LeafPrim {
-                vertices: match p.primitive {
-                    Primitive::Triangle(i) => geometry.triangle_vertices(i),
-                    Primitive::Sphere(_) => [Vec3::ZERO; 3],
-                },
-                primitive: p.primitive,
-            })
-            .collect();
-        Ok(Bvh {
-            nodes,
-            root,
-            prims,
+        let mut bvh = Bvh {
+            nodes: Vec::new(),
+            root: None,
+            leaves: Vec::new(),
+            leaf_spheres: Vec::new(),
+            sphere_order: Vec::new(),
             spheres: geometry.spheres.clone(),
-        })
+        };
+        if !prims.is_empty() {
+            build_recursive(&mut prims, 0, 0, &mut binary);
+            bvh.root = Some(bvh.collapse(&binary, 0, &prims, geometry));
+        }
+        Ok(bvh)
+    }
+
+    /// Collapses the binary subtree at `index` into wide nodes (depth first) and leaves;
+    /// returns its child reference. A wide node takes the binary node's two children and keeps
+    /// opening the inner one with the largest surface area (the most likely to be entered)
+    /// until it has four.
+    fn collapse(
+        &mut self,
+        binary: &[BuildNode],
+        index: u32,
+        prims: &[BuildPrim],
+        geometry: &Geometry,
+    ) -> u32 {
+        let node = &binary[index as usize];
+        if node.count > 0 {
+            let range = node.first as usize..(node.first + node.count) as usize;
+            return self.add_leaf(&prims[range], geometry);
+        }
+        let mut kids = vec![node.left, node.right];
+        while kids.len() < WIDTH {
+            let open = kids
+                .iter()
+                .enumerate()
+                .filter(|(_, &k)| binary[k as usize].count == 0)
+                .max_by(|(_, &a), (_, &b)| {
+                    let area = |k: u32| binary[k as usize].bounds.surface_area();
+                    area(a).total_cmp(&area(b))
+                })
+                .map(|(i, _)| i);
+            let Some(i) = open else { break };
+            let k = &binary[kids[i] as usize];
+            kids[i] = k.left;
+            kids.push(k.right);
+        }
+        let slot = self.nodes.len();
+        self.nodes.push(WideNode {
+            bounds: [
+                Vec4::INFINITY,
+                Vec4::NEG_INFINITY,
+                Vec4::INFINITY,
+                Vec4::NEG_INFINITY,
+                Vec4::INFINITY,
+                Vec4::NEG_INFINITY,
+            ],
+            children: [0; WIDTH],
+        });
+        for (lane, &k) in kids.iter().enumerate() {
+            let b = binary[k as usize].bounds;
+            let child = self.collapse(binary, k, prims, geometry);
+            let w = &mut self.nodes[slot];
+            for axis in 0..3 {
+                w.bounds[2 * axis][lane] = b.min[axis];
+                w.bounds[2 * axis + 1][lane] = b.max[axis];
+            }
+            w.children[lane] = child;
+        }
+        slot as u32
+    }
+
+    fn add_leaf(&mut self, prims: &[BuildPrim], geometry: &Geometry) -> u32 {
+        let mut leaf = Leaf {
+            vertices: [[Vec4::NAN; 3]; 3],
+            triangles: [0; LEAF_SIZE],
+            count: 0,
+        };
+        let first_sphere = self.sphere_order.len() as u32;
+        for p in prims {
+            match p.primitive {
+                Primitive::Triangle(i) => {
+                    let lane = leaf.count as usize;
+                    for (j, v) in geometry.triangle_vertices(i).iter().enumerate() {
+                        for axis in 0..3 {
+                            leaf.vertices[j][axis][lane] = v[axis];
+                        }
+                    }
+                    leaf.triangles[lane] = i;
+                    leaf.count += 1;
+                }
+                Primitive::Sphere(i) => self.sphere_order.push(i),
+            }
+        }
+        let index = self.leaves.len() as u32;
+        self.leaves.push(leaf);
+        let end = self.sphere_order.len() as u32;
+        self.leaf_spheres.push([first_sphere, end]);
+        if end > first_sphere {
+            LEAF | HAS_SPHERES | index
+        } else {
+            LEAF | index
+        }
     }
 
     fn traverse(&self, ray: &Ray, any_hit: bool) -> Option<Hit> {
@@ -208,8 +301,8 @@ impl Bvh {
         let tmin = Vec4::splat(ray.tmin);
         let tri_setup = WatertightRay::new(ray);
         let mut tmax = ray.tmax;
-        // The closest hit so far: (t, u, v, index into `prims`).
-        let mut best: Option<(f32, f32, f32, usize)> = None;
+        // The closest hit so far: (t, u, v, what).
+        let mut best: Option<(f32, f32, f32, HitRef)> = None;
         let mut stack = [(0u32, 0f32); STACK];
         let mut sp = 0usize;
         loop {
@@ -252,24 +345,27 @@ impl Bvh {
                     }
                 }
             } else {
-                let first = (current & (MAX_PRIMITIVES as u32 - 1)) as usize;
-                let count = ((current & !LEAF) >> FIRST_BITS) as usize;
-                for k in first..first + count {
-                    let prim = &self.prims[k];
-                    let hit = match prim.primitive {
-                        Primitive::Triangle(_) => {
-                            tri_setup.intersect(&prim.vertices, ray.tmin, tmax)
+                let index = current & INDEX_MASK;
+                let leaf = &self.leaves[index as usize];
+                if let Some((t, u, v, lane)) = tri_setup.intersect4(leaf, ray.tmin, tmax) {
+                    best = Some((t, u, v, HitRef::Triangle { leaf: index, lane }));
+                    if any_hit {
+                        return best.map(|hit| self.hit(ray, hit));
+                    }
+                    tmax = t;
+                }
+                if current & HAS_SPHERES != 0 {
+                    let [first, end] = self.leaf_spheres[index as usize];
+                    for &i in &self.sphere_order[first as usize..end as usize] {
+                        let hit = sphere_roots(&self.spheres[i as usize], ray)
+                            .and_then(|r| r.into_iter().find(|&t| t >= ray.tmin && t <= tmax));
+                        if let Some(t) = hit {
+                            best = Some((t, 0.0, 0.0, HitRef::Sphere(i)));
+                            if any_hit {
+                                return best.map(|hit| self.hit(ray, hit));
+                            }
+                            tmax = t;
                         }
-                        Primitive::Sphere(i) => sphere_roots(&self.spheres[i as usize], ray)
-                            .and_then(|r| r.into_iter().find(|&t| t >= ray.tmin && t <= tmax))
-                            .map(|t| (t, 0.0, 0.0)),
-                    };
-                    if let Some((t, u, v)) = hit {
-                        best = Some((t, u, v, k));
-                        if any_hit {
-                            return best.map(|hit| self.hit(ray, hit));
-                        }
-                        tmax = t;
                     }
                 }
             }
@@ -288,22 +384,29 @@ impl Bvh {
         }
     }
 
-    /// The [`Hit`] of `(t, u, v, index into prims)`, its normal computed once per query.
-    fn hit(&self, ray: &Ray, (t, u, v, k): (f32, f32, f32, usize)) -> Hit {
-        let prim = &self.prims[k];
-        let ng = match prim.primitive {
-            Primitive::Triangle(_) => {
-                let [a, b, c] = prim.vertices;
-                (b - a).cross(c - a).normalize()
+    /// The [`Hit`] of `(t, u, v, what)`, its normal computed once per query.
+    fn hit(&self, ray: &Ray, (t, u, v, what): (f32, f32, f32, HitRef)) -> Hit {
+        match what {
+            HitRef::Triangle { leaf, lane } => {
+                let leaf = &self.leaves[leaf as usize];
+                let [a, b, c] = leaf
+                    .vertices
+                    .map(|p| Vec3::new(p[0][lane], p[1][lane], p[2][lane]));
+                Hit {
+                    t,
+                    primitive: Primitive::Triangle(leaf.triangles[lane]),
+                    u,
+                    v,
+                    ng: (b - a).cross(c - a).normalize(),
+                }
             }
-            Primitive::Sphere(i) => (ray.at(t) - self.spheres[i as usize].center).normalize(),
-        };
-        Hit {
-            t,
-            primitive: prim.primitive,
-            u,
-            v,
-            ng,
+            HitRef::Sphere(i) => Hit {
+                t,
+                primitive: Primitive::Sphere(i),
+                u: 0.0,
+                v: 0.0,
+                ng: (ray.at(t) - self.spheres[i as usize].center).normalize(),
+            },
         }
     }
 }
@@ -399,56 +502,6 @@ fn build_recursive(
     index
 }
 
-/// Collapses the binary subtree at `index` into wide nodes appended to `wide` (depth first);
-/// returns its child reference. A wide node takes the binary node's two children and keeps
-/// opening the inner one with the largest surface area (the most likely to be entered) until
-/// it has four.
-fn collapse(binary: &[BuildNode], index: u32, wide: &mut Vec<WideNode>) -> u32 {
-    let node = &binary[index as usize];
-    if node.count > 0 {
-        return leaf_ref(node.first, node.count);
-    }
-    let mut kids = vec![node.left, node.right];
-    while kids.len() < WIDTH {
-        let open = kids
-            .iter()
-            .enumerate()
-            .filter(|(_, &k)| binary[k as usize].count == 0)
-            .max_by(|(_, &a), (_, &b)| {
-                let area = |k: u32| binary[k as usize].bounds.surface_area();
-                area(a).total_cmp(&area(b))
-            })
-            .map(|(i, _)| i);
-        let Some(i) = open else { break };
-        let k = &binary[kids[i] as usize];
-        kids[i] = k.left;
-        kids.push(k.right);
-    }
-    let slot = wide.len();
-    wide.push(WideNode {
-        bounds: [
-            Vec4::INFINITY,
-            Vec4::NEG_INFINITY,
-            Vec4::INFINITY,
-            Vec4::NEG_INFINITY,
-            Vec4::INFINITY,
-            Vec4::NEG_INFINITY,
-        ],
-        children: [0; WIDTH],
-    });
-    for (lane, &k) in kids.iter().enumerate() {
-        let b = binary[k as usize].bounds;
-        let child = collapse(binary, k, wide);
-        let w = &mut wide[slot];
-        for axis in 0..3 {
-            w.bounds[2 * axis][lane] = b.min[axis];
-            w.bounds[2 * axis + 1][lane] = b.max[axis];
-        }
-        w.children[lane] = child;
-    }
-    slot as u32
-}
-
 fn partition(prims: &mut [BuildPrim], left: impl Fn(&BuildPrim) -> bool) -> usize {
     let mut i = 0;
     for j in 0..prims.len() {
@@ -462,11 +515,11 @@ fn partition(prims: &mut [BuildPrim], left: impl Fn(&BuildPrim) -> bool) -> usiz
 
 /// Per-ray precomputation of the watertight triangle test.
 struct WatertightRay {
-    origin: Vec3,
-    kx: usize,
-    ky: usize,
-    kz: usize,
-    shear: Vec3,
+    /// The axes (kx, ky, kz): kz the dominant axis of the direction.
+    k: [usize; 3],
+    /// The origin's coordinates along (kx, ky, kz).
+    origin: [Vec4; 3],
+    shear: [Vec4; 3],
 }
 
 impl WatertightRay {
@@ -484,52 +537,83 @@ impl WatertightRay {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        let shear = Vec3::new(-d[kx] / d[kz], -d[ky] / d[kz], 1.0 / d[kz]);
+        let o = ray.origin;
         WatertightRay {
-            origin: ray.origin,
-            kx,
-            ky,
-            kz,
-            shear,
+            k: [kx, ky, kz],
+            origin: [o[kx], o[ky], o[kz]].map(Vec4::splat),
+            shear: [-d[kx] / d[kz], -d[ky] / d[kz], 1.0 / d[kz]].map(Vec4::splat),
         }
     }
 
-    /// `(t, u, v)` of a hit with `t` in `[tmin, tmax]`.
+    /// The nearest hit `(t, u, v, lane)` among the leaf's triangles with `t` in `[tmin, tmax]`.
     #[inline]
-    fn intersect(&self, tri: &[Vec3; 3], tmin: f32, tmax: f32) -> Option<(f32, f32, f32)> {
-        let (kx, ky, kz, s) = (self.kx, self.ky, self.kz, self.shear);
-        let rel = |p: Vec3| {
-            let p = p - self.origin;
-            Vec3::new(p[kx] + s.x * p[kz], p[ky] + s.y * p[kz], s.z * p[kz])
-        };
-        let (a, b, c) = (rel(tri[0]), rel(tri[1]), rel(tri[2]));
-        let mut u = c.x * b.y - c.y * b.x;
-        let mut v = a.x * c.y - a.y * c.x;
-        let mut w = b.x * a.y - b.y * a.x;
-        if u == 0.0 || v == 0.0 || w == 0.0 {
-            // Exact fallback on edges, as the paper prescribes.
-            let (ax, ay, bx, by, cx, cy) = (
-                a.x as f64, a.y as f64, b.x as f64, b.y as f64, c.x as f64, c.y as f64,
+    fn intersect4(&self, leaf: &Leaf, tmin: f32, tmax: f32) -> Option<(f32, f32, f32, usize)> {
+        let [kx, ky, kz] = self.k;
+        let [sx, sy, sz] = self.shear;
+        let rel = |p: &[Vec4; 3]| {
+            let (x, y, z) = (
+                p[kx] - self.origin[0],
+                p[ky] - self.origin[1],
+                p[kz] - self.origin[2],
             );
-            u = (cx * by - cy * bx) as f32;
-            v = (ax * cy - ay * cx) as f32;
-            w = (bx * ay - by * ax) as f32;
+            (x + sx * z, y + sy * z, sz * z)
+        };
+        let (a, b, c) = (
+            rel(&leaf.vertices[0]),
+            rel(&leaf.vertices[1]),
+            rel(&leaf.vertices[2]),
+        );
+        let mut u = c.0 * b.1 - c.1 * b.0;
+        let mut v = a.0 * c.1 - a.1 * c.0;
+        let mut w = b.0 * a.1 - b.1 * a.0;
+        let lanes = (1u32 << leaf.count) - 1;
+        let zero = Vec4::ZERO;
+        let mut on_edge = (u.cmpeq(zero) | v.cmpeq(zero) | w.cmpeq(zero)).bitmask() & lanes;
+        while on_edge != 0 {
+            // Exact fallback on edges, as the paper prescribes.
+            let l = on_edge.trailing_zeros() as usize;
+            on_edge &= on_edge - 1;
+            let (ax, ay, bx, by, cx, cy) = (
+                a.0[l] as f64,
+                a.1[l] as f64,
+                b.0[l] as f64,
+                b.1[l] as f64,
+                c.0[l] as f64,
+                c.1[l] as f64,
+            );
+            u[l] = (cx * by - cy * bx) as f32;
+            v[l] = (ax * cy - ay * cx) as f32;
+            w[l] = (bx * ay - by * ax) as f32;
         }
-        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
-            return None;
-        }
+        let outside = (u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero))
+            & (u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero));
         let det = u + v + w;
-        if det == 0.0 {
+        let t_scaled = u * a.2 + v * b.2 + w * c.2;
+        let inv_det = Vec4::ONE / det;
+        let t = t_scaled * inv_det;
+        let mut hits =
+            (!outside & det.cmpne(zero) & t.cmpge(Vec4::splat(tmin)) & t.cmple(Vec4::splat(tmax)))
+                .bitmask()
+                & lanes;
+        if hits == 0 {
             return None;
         }
-        let t_scaled = u * a.z + v * b.z + w * c.z;
-        let inv_det = 1.0 / det;
-        let t = t_scaled * inv_det;
-        if !(t >= tmin && t <= tmax) {
-            return None;
+        let mut best = hits.trailing_zeros() as usize;
+        hits &= hits - 1;
+        while hits != 0 {
+            let l = hits.trailing_zeros() as usize;
+            hits &= hits - 1;
+            if t[l] < t[best] {
+                best = l;
+            }
         }
         // u weighs vertex 0 here; the Hit contract's (u, v) weigh vertices 1 and 2.
-        Some((t, v * inv_det, w * inv_det))
+        Some((
+            t[best],
+            v[best] * inv_det[best],
+            w[best] * inv_det[best],
+            best,
+        ))
     }
 }
 
