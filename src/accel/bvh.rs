@@ -433,7 +433,8 @@ fn build_recursive(
         first: base,
         count: prims.len() as u32,
     });
-    if prims.len() <= 1 {
+    // Testing a leaf of four triangles costs one SIMD test, no more than one triangle.
+    if prims.len() <= LEAF_SIZE {
         return index;
     }
     let extent = centers.max - centers.min;
