@@ -90,8 +90,6 @@ struct Leaf {
 
 const LEAF_SIZE: usize = 4;
 const BINS: usize = 16;
-/// Relative cost of a node traversal step against one primitive test in the SAH.
-const TRAVERSAL_COST: f32 = 1.0;
 /// Below this depth of the binary tree, splits halve by count: with leaves of up to 4
 /// primitives and at most 2^28 of them the tree is then at most 48 + 26 levels deep, and each
 /// wide level pushes at most 3 entries, which bounds the traversal stack.
@@ -438,58 +436,62 @@ fn build_recursive(
         return index;
     }
     let extent = centers.max - centers.min;
-    let axis = if extent.x >= extent.y && extent.x >= extent.z {
-        0
-    } else if extent.y >= extent.z {
-        1
-    } else {
-        2
-    };
     let mut split = None;
-    if extent[axis] > 0.0 && depth < SAH_DEPTH {
-        // Binned SAH (Wald 2007): cost of splitting after each bin boundary.
-        let mut bins = [(Aabb::EMPTY, 0usize); BINS];
-        let scale = BINS as f32 / extent[axis];
-        let bin_of = |c: Vec3| (((c[axis] - centers.min[axis]) * scale) as usize).min(BINS - 1);
+    if depth < SAH_DEPTH {
+        // Binned SAH (Wald 2007) on all three axes: cost of splitting after each bin boundary,
+        // counting primitives in leaf blocks of four, which cost one SIMD test each.
+        let blocks = |n: usize| n.div_ceil(LEAF_SIZE) as f32;
+        let mut bins = [[(Aabb::EMPTY, 0usize); BINS]; 3];
+        let scale = Vec3::select(extent.cmpgt(Vec3::ZERO), BINS as f32 / extent, Vec3::ZERO);
+        let bin_of = |c: Vec3, axis: usize| {
+            (((c[axis] - centers.min[axis]) * scale[axis]) as usize).min(BINS - 1)
+        };
         for p in prims.iter() {
-            let b = &mut bins[bin_of(p.center)];
-            b.0.grow(&p.bounds);
-            b.1 += 1;
+            for (axis, bins) in bins.iter_mut().enumerate() {
+                let b = &mut bins[bin_of(p.center, axis)];
+                b.0.grow(&p.bounds);
+                b.1 += 1;
+            }
         }
-        let mut right_area = [0.0f32; BINS];
-        let mut right_count = [0usize; BINS];
-        let (mut acc, mut count) = (Aabb::EMPTY, 0);
-        for i in (1..BINS).rev() {
-            acc.grow(&bins[i].0);
-            count += bins[i].1;
-            right_area[i] = acc.surface_area();
-            right_count[i] = count;
-        }
-        let (mut acc, mut count) = (Aabb::EMPTY, 0);
-        let mut best = (f32::INFINITY, 0);
-        for i in 0..BINS - 1 {
-            acc.grow(&bins[i].0);
-            count += bins[i].1;
-            if count == 0 || right_count[i + 1] == 0 {
+        let mut best = (f32::INFINITY, 0, 0);
+        for (axis, bins) in bins.iter().enumerate() {
+            if extent[axis] <= 0.0 {
                 continue;
             }
-            let cost =
-                acc.surface_area() * count as f32 + right_area[i + 1] * right_count[i + 1] as f32;
-            if cost < best.0 {
-                best = (cost, i + 1);
+            let mut right_area = [0.0f32; BINS];
+            let mut right_count = [0usize; BINS];
+            let (mut acc, mut count) = (Aabb::EMPTY, 0);
+            for i in (1..BINS).rev() {
+                acc.grow(&bins[i].0);
+                count += bins[i].1;
+                right_area[i] = acc.surface_area();
+                right_count[i] = count;
+            }
+            let (mut acc, mut count) = (Aabb::EMPTY, 0);
+            for i in 0..BINS - 1 {
+                acc.grow(&bins[i].0);
+                count += bins[i].1;
+                if count == 0 || right_count[i + 1] == 0 {
+                    continue;
+                }
+                let cost = acc.surface_area() * blocks(count)
+                    + right_area[i + 1] * blocks(right_count[i + 1]);
+                if cost < best.0 {
+                    best = (cost, axis, i + 1);
+                }
             }
         }
-        let leaf_cost = bounds.surface_area() * prims.len() as f32;
-        let split_cost = TRAVERSAL_COST * bounds.surface_area() + best.0;
-        if best.0.is_finite() && (split_cost < leaf_cost || prims.len() > LEAF_SIZE) {
-            split = Some(partition(prims, |p| bin_of(p.center) < best.1));
+        if best.0.is_finite() {
+            let (_, axis, bin) = best;
+            split = Some(partition(prims, |p| bin_of(p.center, axis) < bin));
         }
     }
     let mid = match split {
         Some(mid) if mid > 0 && mid < prims.len() => mid,
-        _ if prims.len() <= LEAF_SIZE => return index,
-        // All centres coincide, SAH found no split, or the tree is deep: halve by count.
+        // All centres coincide, SAH found no split, or the tree is deep: halve by count
+        // along the widest axis of the centres.
         _ => {
+            let axis = extent.max_position();
             let mid = prims.len() / 2;
             prims.select_nth_unstable_by(mid, |a, b| a.center[axis].total_cmp(&b.center[axis]));
             mid
