@@ -218,7 +218,9 @@ impl EmbreeScene {
         }
     }
 
-    /// The [`Hit`] of Embree's answer for `ray`.
+    /// The [`Hit`] of Embree's answer for `ray`. Inlined for the common triangle case, the
+    /// sphere case kept out of line: this runs once per ray and lane.
+    #[inline]
     fn hit(&self, h: RawHit, ray: &Ray) -> Option<Hit> {
         let RawHit {
             geom_id,
@@ -240,26 +242,31 @@ impl EmbreeScene {
                 ng,
             })
         } else if geom_id == self.sphere_geometry {
-            // Embree's single-ray and packet sphere tests round differently; the exact root
-            // nearest Embree's makes both (and the Rust BVH) report the same bits.
-            let sphere = &self.spheres[prim_id as usize];
-            let t = sphere_roots(sphere, ray).map_or(t, |[t0, t1]| {
-                if (t0 - t).abs() <= (t1 - t).abs() {
-                    t0
-                } else {
-                    t1
-                }
-            });
-            let ng = (ray.at(t) - sphere.center).normalize();
-            Some(Hit {
-                t,
-                primitive: Primitive::Sphere(prim_id),
-                u: 0.0,
-                v: 0.0,
-                ng,
-            })
+            Some(self.sphere_hit(prim_id, t, ray))
         } else {
             None
+        }
+    }
+
+    #[inline(never)]
+    fn sphere_hit(&self, prim_id: u32, t: f32, ray: &Ray) -> Hit {
+        // Embree's single-ray and packet sphere tests round differently; the exact root
+        // nearest Embree's makes both (and the Rust BVH) report the same bits.
+        let sphere = &self.spheres[prim_id as usize];
+        let t = sphere_roots(sphere, ray).map_or(t, |[t0, t1]| {
+            if (t0 - t).abs() <= (t1 - t).abs() {
+                t0
+            } else {
+                t1
+            }
+        });
+        let ng = (ray.at(t) - sphere.center).normalize();
+        Hit {
+            t,
+            primitive: Primitive::Sphere(prim_id),
+            u: 0.0,
+            v: 0.0,
+            ng,
         }
     }
 }
