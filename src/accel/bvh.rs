@@ -66,7 +66,7 @@ struct WideNode {
     /// The children's boxes: min x, max x, min y, max y, min z, max z, one lane per child.
     /// Unused lanes hold an empty box (min +inf, max -inf), which no ray enters.
     bounds: [Vec4; 6],
-    /// Per lane, a child reference (see [`leaf_ref`]).
+    /// Per lane, a child reference (see [`LEAF`]).
     children: [u32; WIDTH],
 }
 
