@@ -174,7 +174,7 @@ fn subjects() -> Vec<Subject> {
     out
 }
 
-/// One measured loop over a workload; returns a checksum so nothing is optimised away.
+/// What is asked of each ray, one at a time or 8 at a time.
 #[derive(Clone, Copy, PartialEq)]
 enum Query {
     Closest,
@@ -203,6 +203,7 @@ impl Query {
     }
 }
 
+/// One measured loop over a workload; returns a checksum so nothing is optimised away.
 fn run(accel: &dyn Accel, query: Query, rays: &[Ray]) -> u64 {
     let mut sum = 0u64;
     match query {
