@@ -44,7 +44,6 @@ pub struct EmbreeScene {
     _vertices: Vec<[f32; 4]>,
     _indices: Vec<[u32; 3]>,
     _spheres: Vec<[f32; 4]>,
-    triangles: Vec<[Vec3; 3]>,
     spheres: Vec<Sphere>,
     triangle_geometry: u32,
     sphere_geometry: u32,
@@ -104,9 +103,6 @@ impl EmbreeScene {
                 .spheres
                 .iter()
                 .map(|s| [s.center.x, s.center.y, s.center.z, s.radius])
-                .collect(),
-            triangles: (0..geometry.triangles.len() as u32)
-                .map(|i| geometry.triangle_vertices(i))
                 .collect(),
             spheres: geometry.spheres.clone(),
             triangle_geometry: sys::RTC_INVALID_GEOMETRY_ID,
@@ -222,12 +218,22 @@ impl EmbreeScene {
         }
     }
 
-    fn hit(&self, geom_id: u32, prim_id: u32, t: f32, u: f32, v: f32, ray: &Ray) -> Option<Hit> {
-        // Normals are recomputed from our own copy of the vertices, so they follow the Hit
-        // contract exactly (Embree's Ng has the opposite winding convention and no unit length).
+    /// The [`Hit`] of Embree's answer for `ray`. Inlined for the common triangle case, the
+    /// sphere case kept out of line: this runs once per ray and lane.
+    #[inline]
+    fn hit(&self, h: RawHit, ray: &Ray) -> Option<Hit> {
+        let RawHit {
+            geom_id,
+            prim_id,
+            t,
+            u,
+            v,
+            ng,
+        } = h;
         if geom_id == self.triangle_geometry {
-            let [a, b, c] = self.triangles[prim_id as usize];
-            let ng = (b - a).cross(c - a).normalize();
+            // Embree's Ng (same winding as the Hit contract, not unit length) rather than one
+            // recomputed from the vertices: reading those again is a cache miss on large meshes.
+            let ng = ng.normalize();
             Some(Hit {
                 t,
                 primitive: Primitive::Triangle(prim_id),
@@ -236,28 +242,44 @@ impl EmbreeScene {
                 ng,
             })
         } else if geom_id == self.sphere_geometry {
-            // Embree's single-ray and packet sphere tests round differently; the exact root
-            // nearest Embree's makes both (and the Rust BVH) report the same bits.
-            let sphere = &self.spheres[prim_id as usize];
-            let t = sphere_roots(sphere, ray).map_or(t, |[t0, t1]| {
-                if (t0 - t).abs() <= (t1 - t).abs() {
-                    t0
-                } else {
-                    t1
-                }
-            });
-            let ng = (ray.at(t) - sphere.center).normalize();
-            Some(Hit {
-                t,
-                primitive: Primitive::Sphere(prim_id),
-                u: 0.0,
-                v: 0.0,
-                ng,
-            })
+            Some(self.sphere_hit(prim_id, t, ray))
         } else {
             None
         }
     }
+
+    #[inline(never)]
+    fn sphere_hit(&self, prim_id: u32, t: f32, ray: &Ray) -> Hit {
+        // Embree's single-ray and packet sphere tests round differently; the exact root
+        // nearest Embree's makes both (and the Rust BVH) report the same bits.
+        let sphere = &self.spheres[prim_id as usize];
+        let t = sphere_roots(sphere, ray).map_or(t, |[t0, t1]| {
+            if (t0 - t).abs() <= (t1 - t).abs() {
+                t0
+            } else {
+                t1
+            }
+        });
+        let ng = (ray.at(t) - sphere.center).normalize();
+        Hit {
+            t,
+            primitive: Primitive::Sphere(prim_id),
+            u: 0.0,
+            v: 0.0,
+            ng,
+        }
+    }
+}
+
+/// One ray's answer from Embree.
+struct RawHit {
+    geom_id: u32,
+    prim_id: u32,
+    t: f32,
+    u: f32,
+    v: f32,
+    /// Embree's unnormalised geometric normal.
+    ng: Vec3,
 }
 
 fn rtc_ray(ray: &Ray) -> sys::RTCRay {
@@ -360,7 +382,17 @@ impl Accel for EmbreeScene {
         if h.geomID == sys::RTC_INVALID_GEOMETRY_ID {
             return None;
         }
-        self.hit(h.geomID, h.primID, rayhit.ray.tfar, h.u, h.v, ray)
+        self.hit(
+            RawHit {
+                geom_id: h.geomID,
+                prim_id: h.primID,
+                t: rayhit.ray.tfar,
+                u: h.u,
+                v: h.v,
+                ng: Vec3::new(h.Ng_x, h.Ng_y, h.Ng_z),
+            },
+            ray,
+        )
     }
 
     fn occluded(&self, ray: &Ray) -> bool {
@@ -393,11 +425,14 @@ impl Accel for EmbreeScene {
             let h = &rayhit.hit;
             *out = if active & (1 << i) != 0 && h.geomID[i] != sys::RTC_INVALID_GEOMETRY_ID {
                 self.hit(
-                    h.geomID[i],
-                    h.primID[i],
-                    rayhit.ray.tfar[i],
-                    h.u[i],
-                    h.v[i],
+                    RawHit {
+                        geom_id: h.geomID[i],
+                        prim_id: h.primID[i],
+                        t: rayhit.ray.tfar[i],
+                        u: h.u[i],
+                        v: h.v[i],
+                        ng: Vec3::new(h.Ng_x[i], h.Ng_y[i], h.Ng_z[i]),
+                    },
                     ray,
                 )
             } else {
@@ -426,6 +461,191 @@ impl Drop for EmbreeScene {
     fn drop(&mut self) {
         // SAFETY: both handles are valid and owned; the scene goes before its device, and the
         // error log (a field dropped after this) outlives the device.
+        unsafe {
+            sys::rtcReleaseScene(self.scene);
+            sys::rtcReleaseDevice(self.device);
+        }
+    }
+}
+
+/// A triangle scene built and queried through raw `embree-sys` calls, with none of
+/// [`EmbreeScene`]'s conversions, so benchmarks can measure what the safe wrapper costs. Not
+/// part of the renderer's interface.
+#[doc(hidden)]
+pub struct RawScene {
+    device: sys::RTCDevice,
+    scene: sys::RTCScene,
+}
+
+impl RawScene {
+    /// The triangles of `geometry` (its spheres are left out), in an Embree-owned buffer.
+    pub fn build(geometry: &Geometry) -> Result<Self, AccelError> {
+        let embree_error = |device| {
+            // SAFETY: `device` is a valid device handle or null, which asks for the error of
+            // the failed device creation.
+            let code = unsafe { sys::rtcGetDeviceError(device) };
+            (code != sys::RTCError::RTC_ERROR_NONE).then(|| AccelError::Embree {
+                code: code as u32,
+                message: format!("{code:?}"),
+            })
+        };
+        if let Some(i) = geometry
+            .triangles
+            .iter()
+            .position(|t| t.iter().any(|&v| v as usize >= geometry.positions.len()))
+        {
+            return Err(AccelError::InvalidGeometry(format!(
+                "triangle {i} indexes a vertex beyond the {} given",
+                geometry.positions.len()
+            )));
+        }
+        // SAFETY: a null configuration string asks for the defaults.
+        let device = unsafe { sys::rtcNewDevice(std::ptr::null()) };
+        if device.is_null() {
+            return Err(
+                embree_error(std::ptr::null_mut()).unwrap_or(AccelError::Embree {
+                    code: 0,
+                    message: "rtcNewDevice failed".into(),
+                }),
+            );
+        }
+        // SAFETY: `device` is valid; the scene owns the geometry after attaching, so our
+        // reference is released.
+        let scene = unsafe {
+            let scene = sys::rtcNewScene(device);
+            sys::rtcSetSceneBuildQuality(scene, sys::RTCBuildQuality_RTC_BUILD_QUALITY_MEDIUM);
+            let mesh = sys::rtcNewGeometry(device, sys::RTCGeometryType_RTC_GEOMETRY_TYPE_TRIANGLE);
+            sys::rtcAttachGeometry(scene, mesh);
+            sys::rtcReleaseGeometry(mesh);
+            scene
+        };
+        let raw = RawScene { device, scene };
+        if let Some(e) = embree_error(device) {
+            return Err(e);
+        }
+        // SAFETY: geometry 0 is the mesh attached above; Embree allocates each buffer with
+        // `count * stride` bytes (plus its padding for 16-byte vertex reads), 4-byte aligned,
+        // so it is valid as a slice of that many `[f32; 3]` / `[u32; 3]` until the scene is
+        // released, and nothing else accesses it before the commit.
+        unsafe {
+            let mesh = sys::rtcGetGeometry(scene, 0);
+            let vertices = sys::rtcSetNewGeometryBuffer(
+                mesh,
+                sys::RTCBufferType_RTC_BUFFER_TYPE_VERTEX,
+                0,
+                sys::RTCFormat_RTC_FORMAT_FLOAT3,
+                12,
+                geometry.positions.len(),
+            ) as *mut [f32; 3];
+            let indices = sys::rtcSetNewGeometryBuffer(
+                mesh,
+                sys::RTCBufferType_RTC_BUFFER_TYPE_INDEX,
+                0,
+                sys::RTCFormat_RTC_FORMAT_UINT3,
+                12,
+                geometry.triangles.len(),
+            ) as *mut [u32; 3];
+            if !vertices.is_null() && !indices.is_null() {
+                std::slice::from_raw_parts_mut(vertices, geometry.positions.len())
+                    .iter_mut()
+                    .zip(&geometry.positions)
+                    .for_each(|(out, p)| *out = p.to_array());
+                std::slice::from_raw_parts_mut(indices, geometry.triangles.len())
+                    .copy_from_slice(&geometry.triangles);
+                sys::rtcCommitGeometry(mesh);
+                sys::rtcCommitScene(scene);
+            }
+        }
+        match embree_error(device) {
+            Some(e) => Err(e),
+            None => Ok(raw),
+        }
+    }
+
+    /// Closest hits of `rays` through `rtcIntersect1`; returns how many hit.
+    pub fn intersect1(&self, rays: &[Ray]) -> u64 {
+        ensure_flush_denormals();
+        let mut context = EmbreeScene::context(false);
+        let mut hits = 0;
+        for ray in rays {
+            let mut rayhit = sys::RTCRayHit {
+                ray: rtc_ray(ray),
+                hit: empty_hit(),
+            };
+            // SAFETY: the scene is committed; context and rayhit are valid for the call.
+            unsafe { sys::rtcIntersect1(self.scene, &mut context, &mut rayhit) };
+            hits += (rayhit.hit.geomID != sys::RTC_INVALID_GEOMETRY_ID) as u64;
+        }
+        hits
+    }
+
+    /// Occlusion of `rays` through `rtcOccluded1`; returns how many are occluded.
+    pub fn occluded1(&self, rays: &[Ray]) -> u64 {
+        ensure_flush_denormals();
+        let mut context = EmbreeScene::context(false);
+        let mut occluded = 0;
+        for ray in rays {
+            let mut r = rtc_ray(ray);
+            // SAFETY: as for rtcIntersect1.
+            unsafe { sys::rtcOccluded1(self.scene, &mut context, &mut r) };
+            occluded += (r.tfar == f32::NEG_INFINITY) as u64;
+        }
+        occluded
+    }
+
+    /// Closest hits of `rays`, 8 at a time through `rtcIntersect8` (a partial last packet is
+    /// left out); returns how many hit.
+    pub fn intersect8(&self, rays: &[Ray]) -> u64 {
+        ensure_flush_denormals();
+        let mut context = EmbreeScene::context(false);
+        let mut hits = 0;
+        for chunk in rays.chunks_exact(PACKET) {
+            let Ok(packet) = <&[Ray; PACKET]>::try_from(chunk) else {
+                continue;
+            };
+            let (valid, ray) = packet_rays(packet, 0xff);
+            let mut rayhit = sys::RTCRayHit8 {
+                ray,
+                hit: sys::RTCHit8 {
+                    geomID: [sys::RTC_INVALID_GEOMETRY_ID; PACKET],
+                    instID: [[sys::RTC_INVALID_GEOMETRY_ID; PACKET]],
+                    ..Default::default()
+                },
+            };
+            // SAFETY: `valid` and `rayhit` are 32-byte aligned and live for the call; the
+            // scene is committed.
+            unsafe { sys::rtcIntersect8(valid.0.as_ptr(), self.scene, &mut context, &mut rayhit) };
+            hits += rayhit
+                .hit
+                .geomID
+                .iter()
+                .filter(|&&g| g != sys::RTC_INVALID_GEOMETRY_ID)
+                .count() as u64;
+        }
+        hits
+    }
+
+    /// Occlusion of `rays`, 8 at a time through `rtcOccluded8`; returns how many are occluded.
+    pub fn occluded8(&self, rays: &[Ray]) -> u64 {
+        ensure_flush_denormals();
+        let mut context = EmbreeScene::context(false);
+        let mut occluded = 0;
+        for chunk in rays.chunks_exact(PACKET) {
+            let Ok(packet) = <&[Ray; PACKET]>::try_from(chunk) else {
+                continue;
+            };
+            let (valid, mut ray) = packet_rays(packet, 0xff);
+            // SAFETY: as for rtcIntersect8.
+            unsafe { sys::rtcOccluded8(valid.0.as_ptr(), self.scene, &mut context, &mut ray) };
+            occluded += ray.tfar.iter().filter(|&&t| t == f32::NEG_INFINITY).count() as u64;
+        }
+        occluded
+    }
+}
+
+impl Drop for RawScene {
+    fn drop(&mut self) {
+        // SAFETY: both handles are valid and owned; the scene goes before its device.
         unsafe {
             sys::rtcReleaseScene(self.scene);
             sys::rtcReleaseDevice(self.device);
