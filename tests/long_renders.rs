@@ -36,7 +36,7 @@ fn bits(path: &Path) -> Vec<[u64; 3]> {
 #[test]
 fn continue_equals_one_uninterrupted_render() {
     let dir = tempfile::tempdir().unwrap();
-    for technique in ["pt", "bpt", "vcm"] {
+    for technique in ["pt", "bpt", "vcm", "upg"] {
         let whole = dir.path().join(format!("{technique}-whole.exr"));
         let half = dir.path().join(format!("{technique}-half.exr"));
         let common = [
