@@ -3,7 +3,7 @@
 use crate::accel::AccelKind;
 use crate::color::Rgb;
 use crate::film::{exr, png, ErrorTracker, Film, FilmError, Metadata, TraceWindow};
-use crate::integrator::{self, RenderContext, Technique};
+use crate::integrator::{self, RenderContext, Technique, UpgCounters};
 use crate::scene::{Camera, LoadOptions, Scene, SceneError};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -166,6 +166,27 @@ pub struct Progress {
     pub samples_per_second: f64,
     pub rays_per_second: f64,
     pub rmse: Option<f64>,
+    /// UPG's merges and tentative rays in this run (zero for the other techniques).
+    pub upg: UpgCounters,
+}
+
+impl Progress {
+    /// UPG's rates for the metadata and the progress line, when it merged at all.
+    pub fn upg_statistics(&self) -> Option<Vec<(String, String)>> {
+        let seconds = self.elapsed.as_secs_f64().max(1e-9);
+        (self.upg.merges > 0).then(|| {
+            vec![
+                (
+                    "upg_merges_per_second".into(),
+                    format!("{:.0}", self.upg.merges as f64 / seconds),
+                ),
+                (
+                    "upg_tentative_rays_per_second".into(),
+                    format!("{:.0}", self.upg.tentative_rays as f64 / seconds),
+                ),
+            ]
+        })
+    }
 }
 
 /// The state of a render: its film, its metadata and what it needs to go on.
@@ -225,7 +246,9 @@ impl RenderJob<'_> {
         let mut last_snapshot = start;
         let mut last_error = None::<Instant>;
         let mut rays = 0u64;
+        let mut upg = UpgCounters::default();
         let mut iterations_here = 0u64;
+        let mut progress = None::<Progress>;
         loop {
             let done_iterations = stop.iterations.is_some_and(|n| self.film.iterations >= n);
             let done_time = stop.time.is_some_and(|t| start.elapsed() >= t);
@@ -237,11 +260,11 @@ impl RenderJob<'_> {
             self.film.add_iteration(&frame);
             iterations_here += 1;
             rays += stats.rays;
+            upg = upg + stats.upg;
             self.metadata.dropped_samples += stats.dropped_samples;
             self.metadata.iterations = self.film.iterations;
             let elapsed = start.elapsed();
             self.metadata.render_seconds = earlier_seconds + elapsed.as_secs_f64();
-            // Errors every iteration, but at most once a second: measuring a large image costs.
             // Errors at every power-of-two iteration (even spacing on the log-log convergence
             // charts) and otherwise at most once a second: measuring a large image costs.
             let mut rmse = None;
@@ -251,28 +274,39 @@ impl RenderJob<'_> {
                 last_error = Some(Instant::now());
             }
             let seconds = elapsed.as_secs_f64().max(1e-9);
-            on_progress(&Progress {
+            let now = Progress {
                 iterations: self.film.iterations,
                 elapsed,
                 samples_per_second: (iterations_here * self.film.pixel_count() as u64) as f64
                     / seconds,
                 rays_per_second: rays as f64 / seconds,
                 rmse,
-            });
+                upg,
+            };
+            on_progress(&now);
+            let statistics = |progress: &Progress| {
+                let mut all = integrator.statistics();
+                all.extend(progress.upg_statistics().unwrap_or_default());
+                all
+            };
             if self
                 .snapshot_every
                 .is_some_and(|every| last_snapshot.elapsed() >= every)
             {
-                self.metadata.statistics = integrator.statistics();
+                self.metadata.statistics = statistics(&now);
                 self.write()?;
                 last_snapshot = Instant::now();
             }
+            progress = Some(now);
         }
         let recorded = self.metadata.errors.last().map(|e| e.iterations);
         if iterations_here > 0 && recorded != Some(self.film.iterations) {
             record_error(&self.tracker, &self.film, &mut self.metadata);
         }
         self.metadata.statistics = integrator.statistics();
+        if let Some(rates) = progress.as_ref().and_then(Progress::upg_statistics) {
+            self.metadata.statistics.extend(rates);
+        }
         self.write()
     }
 
