@@ -29,7 +29,7 @@ use vmerge::scene::{self, LoadOptions};
 /// bucket size; `u32` items, as the grid's indices.
 type KdTree = ImmutableKdTree<f32, u32, 3, 32>;
 
-const SIZES: [usize; 3] = [1_000_000, 3_000_000, 10_000_000];
+const SIZES: [usize; 1] = [1_000_000];
 /// Radii as fractions of the scene size, with the number of queries for each: the larger radius
 /// returns 100 times more neighbours, so it gets 100 times fewer queries.
 const RADII: [(f32, usize); 2] = [(0.01, 100_000), (0.1, 1_000)];

@@ -105,7 +105,9 @@ impl HashGrid {
     #[inline]
     pub fn query(&self, q: Vec3, mut visit: impl FnMut(usize, f32)) {
         let centre = cell_key(q, self.inv_cell);
-        for row in [
+        // All lookups first: their cache misses, and those of the ranges' first points, overlap
+        // instead of each waiting for the previous range's scan.
+        let ranges = [
             centre - Z - Y,
             centre - Z,
             centre - Z + Y,
@@ -115,10 +117,10 @@ impl HashGrid {
             centre + Z - Y,
             centre + Z,
             centre + Z + Y,
-        ] {
-            if let Some(&(begin, end)) = self.triplets.get(&row) {
-                self.scan(begin as usize..end as usize, q, &mut visit);
-            }
+        ]
+        .map(|row| self.triplets.get(&row).map_or(0..0, |&(b, e)| b as usize..e as usize));
+        for range in ranges {
+            self.scan(range, q, &mut visit);
         }
     }
 
