@@ -29,10 +29,11 @@ use vmerge::scene::{self, LoadOptions};
 /// bucket size; `u32` items, as the grid's indices.
 type KdTree = ImmutableKdTree<f32, u32, 3, 32>;
 
-const SIZES: [usize; 1] = [1_000_000];
-/// Radii as fractions of the scene size, with the number of queries for each: the larger radius
-/// returns 100 times more neighbours, so it gets 100 times fewer queries.
-const RADII: [(f32, usize); 2] = [(0.01, 100_000), (0.1, 1_000)];
+const SIZES: [usize; 3] = [1_000_000, 3_000_000, 10_000_000];
+/// Radii as fractions of the scene size, with the number of query points and how many of them
+/// one timed iteration answers (the next batch each time, cycling): the larger radius returns
+/// 100 times more neighbours, so it gets 100 times fewer.
+const RADII: [(f32, usize, usize); 2] = [(0.01, 100_000, 1_000), (0.1, 1_000, 10)];
 
 /// Area-uniform points on the triangles of a scene.
 struct Surfaces {
@@ -159,7 +160,7 @@ fn benches(c: &mut Criterion) {
         &Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml"),
     );
     let diagonal = surfaces.diagonal();
-    let max_queries = RADII.iter().map(|&(_, n)| n).max().unwrap_or(0);
+    let max_queries = RADII.iter().map(|&(_, n, _)| n).max().unwrap_or(0);
     let queries = surfaces.sample(max_queries, 2);
     let query_arrays: Vec<[f32; 3]> = queries.iter().map(|q| q.to_array()).collect();
     let single = rayon::ThreadPoolBuilder::new()
@@ -186,7 +187,7 @@ fn benches(c: &mut Criterion) {
             })
         });
         let tree = KdTree::new_from_slice(&arrays);
-        for (fraction, query_count) in RADII {
+        for (fraction, query_count, batch) in RADII {
             let radius = fraction * diagonal;
             let key = format!("{n}/{fraction}");
             group.bench_function(BenchmarkId::new("build/grid", fraction), |b| {
@@ -219,17 +220,21 @@ fn benches(c: &mut Criterion) {
                 .0
                 .borrow_mut()
                 .insert(format!("{key}/neighbours"), vec![expected.count as f64]);
+            let batches = query_count / batch;
+            let mut next = 0;
             group.bench_function(BenchmarkId::new("query/kd-tree", fraction), |b| {
                 b.iter_custom(|iters| {
                     record.time(&format!("{key}/query/kd-tree"), iters, || {
-                        query_tree(&tree, query_arrays, radius)
+                        next = (next + 1) % batches;
+                        query_tree(&tree, &query_arrays[next * batch..][..batch], radius)
                     })
                 })
             });
             group.bench_function(BenchmarkId::new("query/grid", fraction), |b| {
                 b.iter_custom(|iters| {
                     record.time(&format!("{key}/query/grid"), iters, || {
-                        query_grid(&grid, queries)
+                        next = (next + 1) % batches;
+                        query_grid(&grid, &queries[next * batch..][..batch])
                     })
                 })
             });
@@ -254,7 +259,7 @@ fn benches(c: &mut Criterion) {
     );
     for n in SIZES {
         let build_kd = record.median(&format!("{n}/build/kd-tree"));
-        for (fraction, query_count) in RADII {
+        for (fraction, query_count, batch) in RADII {
             let key = format!("{n}/{fraction}");
             let get = |what: &str| record.median(&format!("{key}/{what}"));
             let (
@@ -275,7 +280,7 @@ fn benches(c: &mut Criterion) {
             else {
                 continue;
             };
-            let per_query = 1e6 / query_count as f64;
+            let per_query = 1e6 / batch as f64;
             println!(
                 "{:>10} {:>6} {:>9.0} | {:>9.1} {:>9.1} {:>9.1} {:>6.2} {:>6.2} | {:>10.3} {:>10.3} {:>6.2}",
                 n,

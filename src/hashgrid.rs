@@ -36,7 +36,7 @@ pub struct HashGrid {
 impl HashGrid {
     /// Builds the grid over `points` for queries of the given radius (> 0).
     pub fn build(points: &[Vec3], radius: f32) -> Self {
-        assert!(points.len() <= u32::MAX as usize, "at most 2^32 points");
+        assert!(points.len() <= u32::MAX as usize, "at most u32::MAX points");
         let inv_cell = 1.0 / radius;
         let mut keys: Vec<u128> = points
             .par_iter()
@@ -74,8 +74,20 @@ impl HashGrid {
             cells.push((last >> 32, keys.len() as u32));
         }
         drop(keys);
+        // Exact capacity: a cell adds the triplet keys its row predecessor did not (x is the low
+        // 32 bits of a cell key, so a gap below 3 within a row shares keys).
+        let key_count: usize = cells
+            .iter()
+            .zip(std::iter::once(None).chain(cells.iter().map(Some)))
+            .map(|(&(cell, _), previous)| match previous {
+                Some(&(previous, _)) if cell >> 32 == previous >> 32 => {
+                    (cell - previous).min(3) as usize
+                }
+                _ => 3,
+            })
+            .sum();
         let mut triplets: HashMap<CellKey, (u32, u32), FxBuildHasher> =
-            HashMap::with_capacity_and_hasher(3 * cells.len(), FxBuildHasher);
+            HashMap::with_capacity_and_hasher(key_count, FxBuildHasher);
         let mut begin = 0;
         for (cell, end) in cells {
             // The cell's own points belong to the triplets centred on it and on both x-neighbours;
@@ -87,6 +99,7 @@ impl HashGrid {
             }
             begin = end;
         }
+        debug_assert_eq!(triplets.len(), key_count);
         HashGrid {
             radius,
             radius_sq: radius * radius,
@@ -129,7 +142,11 @@ impl HashGrid {
             centre + Z,
             centre + Z + Y,
         ]
-        .map(|row| self.triplets.get(&row).map_or(0..0, |&(b, e)| b as usize..e as usize));
+        .map(|row| {
+            self.triplets
+                .get(&row)
+                .map_or(0..0, |&(b, e)| b as usize..e as usize)
+        });
         for range in ranges {
             self.scan(range, q, &mut visit);
         }
