@@ -628,7 +628,11 @@ impl<'a> VertexCm<'a> {
             else {
                 return;
             };
-            let Some(link) = self.link(&q_bsdf, q.position, q.ng, bsdf, hit, stats) else {
+            let Some(link) = self.link(
+                (&q_bsdf, q.position, q.ng),
+                (bsdf, hit.position, hit.ng),
+                stats,
+            ) else {
                 return;
             };
             let Some(inv_p_acc) = self.inverse_acceptance(
@@ -695,8 +699,11 @@ impl<'a> VertexCm<'a> {
             ) else {
                 return;
             };
-            let (p_hit_position, p_ng) = (photon.position, photon.ng);
-            let Some(link) = self.link_to_photon(prev, &p_bsdf, p_hit_position, p_ng, stats) else {
+            let Some(link) = self.link(
+                (&prev.bsdf, prev.hit.position, prev.hit.ng),
+                (&p_bsdf, photon.position, photon.ng),
+                stats,
+            ) else {
                 return;
             };
             let Some(inv_p_acc) = self.inverse_acceptance(
@@ -750,44 +757,21 @@ impl<'a> VertexCm<'a> {
         }
     }
 
-    /// The explicit connection of a merge, from vertex (`from`, `from_position`) to the eye
-    /// vertex `to`: both BSDFs, the geometry term and the visibility (000 eq. 2.67).
+    /// The explicit connection of a UPG merge between two vertices (BSDF, position, geometric
+    /// normal): both BSDFs, the geometry term and the visibility (000 eq. 2.67).
     fn link(
         &self,
-        from: &Bsdf,
-        from_position: Vec3,
-        from_ng: Vec3,
-        to: &Bsdf,
-        to_hit: &SurfaceHit,
+        (from, from_position, from_ng): (&Bsdf, Vec3, Vec3),
+        (to, to_position, to_ng): (&Bsdf, Vec3, Vec3),
         stats: &mut IterationStats,
     ) -> Option<Link> {
-        Link::new(from, from_position, to, to_hit.position).filter(|_| {
+        Link::new(from, from_position, to, to_position).filter(|_| {
             stats.rays += 1;
             !self.scene().occluded(&Ray::spawn_between(
                 from_position,
                 from_ng,
-                to_hit.position,
-                to_hit.ng,
-            ))
-        })
-    }
-
-    /// [`Self::link`] from the previous eye vertex to a light vertex.
-    fn link_to_photon(
-        &self,
-        prev: &EyeVertex,
-        photon_bsdf: &Bsdf,
-        photon_position: Vec3,
-        photon_ng: Vec3,
-        stats: &mut IterationStats,
-    ) -> Option<Link> {
-        Link::new(&prev.bsdf, prev.hit.position, photon_bsdf, photon_position).filter(|_| {
-            stats.rays += 1;
-            !self.scene().occluded(&Ray::spawn_between(
-                prev.hit.position,
-                prev.hit.ng,
-                photon_position,
-                photon_ng,
+                to_position,
+                to_ng,
             ))
         })
     }
