@@ -403,6 +403,14 @@ fn vcm_weights(
                 Gather::UpgCamera => surface(j + 1),
             }
     };
+    // mis(eta_j) of the merge at x_j from the gathering side's area pdf of x_j (000 eq. 2.80).
+    let eta = |j: usize| {
+        let gather_pdf = match gather {
+            Gather::Density | Gather::UpgLight => q.light_a[j],
+            Gather::UpgCamera => q.eye_a[j],
+        };
+        w.eta_if(merge_valid(j), w.mis(1.0 / gather_pdf))
+    };
     let mut light = vec![VcmVertex::default(); k];
     let mut state = w.light_origin(
         l.pick * l.pdf_a,
@@ -418,7 +426,7 @@ fn vcm_weights(
             q.cos_prev[i],
             !(i == 1 && l.infinite),
         );
-        w.resolve(&mut state, surface(i));
+        w.drop_pending(&mut state, surface(i));
         light[i] = state;
         if i + 1 < k {
             let here = match gather {
@@ -441,7 +449,7 @@ fn vcm_weights(
     let mut state = w.camera_origin(q.camera_pdf_w);
     for i in (1..k).rev() {
         w.arrive(&mut state, q.dist2[i].sqrt(), q.cos_next[i], true);
-        w.resolve(&mut state, surface(i));
+        w.drop_pending(&mut state, surface(i));
         eye[i] = state;
         let here = match gather {
             Gather::Density => VmHere::Valid,
@@ -474,7 +482,7 @@ fn vcm_weights(
             } else if s == 1 {
                 w.light_sample(
                     &eye[1],
-                    merge_valid(1),
+                    eta(1),
                     q.eye_w[1],
                     q.light_w[1],
                     l.pick * l.direct_pdf_w,
@@ -486,18 +494,13 @@ fn vcm_weights(
                 )
             } else if s == k {
                 let camera_pdf_a = q.eye_a[k - 1] * w.light_paths;
-                w.to_camera(
-                    &light[k - 1],
-                    merge_valid(k - 1),
-                    camera_pdf_a,
-                    q.eye_w[k - 1],
-                )
+                w.to_camera(&light[k - 1], eta(k - 1), camera_pdf_a, q.eye_w[k - 1])
             } else {
                 w.connect(
                     &light[s - 1],
-                    merge_valid(s - 1),
+                    eta(s - 1),
                     &eye[s],
-                    merge_valid(s),
+                    eta(s),
                     q.eye_w[s - 1],
                     q.light_w[s],
                     q.light_a[s],
@@ -513,7 +516,7 @@ fn vcm_weights(
             if !merge_valid(j) {
                 return 0.0;
             }
-            w.merge(&light[j], &eye[j], q.eye_w[j], q.light_w[j])
+            w.merge(&light[j], &eye[j], q.eye_w[j], q.light_w[j], eta(j))
         })
         .collect();
     (vc, vm)
@@ -551,7 +554,7 @@ fn check_scene(name: &str) -> (usize, usize) {
         scene: &scene,
         camera: Camera::new(&desc, PIXELS, PIXELS),
     };
-    let (mut specular, mut merged) = (0, 0);
+    let (mut specular, mut merged, mut clamped) = (0, 0, 0);
     for path in &paths {
         let q = evaluate(&setup, path);
         // A path the BSDFs cannot scatter along (light behind a surface) has no techniques.
@@ -580,8 +583,13 @@ fn check_scene(name: &str) -> (usize, usize) {
                 );
             }
             for gather in [Gather::Density, Gather::UpgLight, Gather::UpgCamera] {
-                for radius in [1e-3, 1e-2, 0.1] {
-                    let w = VcmWeights::new(power, radius, setup.n(), true, true);
+                // Large radii make UPG's clamped acceptance min(p pi r^2, 1) bind.
+                for radius in [1e-3, 1e-2, 0.1, 0.5, 1.0] {
+                    let w = if gather == Gather::Density {
+                        VcmWeights::new(power, radius, setup.n(), true, true)
+                    } else {
+                        VcmWeights::clamped(power, radius, setup.n())
+                    };
                     let (vc, vm) = vcm_weights(&w, gather, path, &q);
                     let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
                     assert!(
@@ -592,6 +600,18 @@ fn check_scene(name: &str) -> (usize, usize) {
                     );
                     if vm.iter().any(|&m| m > 1e-3) {
                         merged += 1;
+                    }
+                    if gather != Gather::Density {
+                        // The same techniques without the clamp: where the weights differ,
+                        // min(p pi r^2, 1) was 1 somewhere.
+                        let free = VcmWeights::new(power, radius, setup.n(), true, true);
+                        let (free_vc, free_vm) = vcm_weights(&free, gather, path, &q);
+                        let differs = |a: &[f32], b: &[f32]| {
+                            a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-3)
+                        };
+                        if differs(&vc, &free_vc) || differs(&vm, &free_vm) {
+                            clamped += 1;
+                        }
                     }
                 }
             }
@@ -606,6 +626,7 @@ fn check_scene(name: &str) -> (usize, usize) {
             }
         }
     }
+    assert!(clamped > 0, "{name}: the clamp never bound");
     (specular, merged)
 }
 

@@ -188,17 +188,29 @@ pub fn bpt_to_camera(
 /// Whether merging at the vertex a sub-path scatters from is one of the techniques. Vertex
 /// merging by density estimation (`vcm`, `bpm`, `ppm`) merges at every non-delta vertex;
 /// unbiased photon gathering needs the merge vertex's neighbour on the gathering side to be a
-/// non-delta surface vertex too (the tentative rays leave from it, 000 sec. 2.4.3), which for
-/// one of the two sub-paths is only known one vertex later.
+/// non-delta surface vertex too (the tentative rays leave from it, 000 sec. 2.4.3), and its
+/// clamped weight needs the pdf with which that neighbour samples the merge vertex: for one of
+/// the two sub-paths both are known only once the sub-path has gone on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum VmHere {
+    /// A technique, gathered from this sub-path's side: its pdf is this vertex's d^VCM.
     Valid,
     Invalid,
-    /// Decided on arrival at the next vertex ([`VcmWeights::resolve`]).
+    /// Gathered from the other side: kept pending ([`VcmVertex::pending_vm`]) until the next
+    /// vertex shows whether it is a surface ([`VcmWeights::drop_pending`]) and a use of that
+    /// vertex gives its reverse pdf ([`VcmWeights::settle`]).
     Deferred,
 }
 
 /// Per-iteration constants of the VCM weights (001 eqs. (20)-(22) and sec. 5.5-5.6).
+///
+/// The merge at vertex x_j weighs eta_j = n_VM p_acc(x_j) / p(x_j) against the connections,
+/// with p_acc approximated by p(x_j) pi r^2 (001 eq. (21)), so eta is one number, eta_VCM. UPG
+/// clamps the approximation to min(p(x_j) pi r^2, 1) (000 eq. 2.80), so eta_j =
+/// n_VM min(pi r^2, 1 / p(x_j)) depends on the area pdf p(x_j) with which the gathering side
+/// samples the merge vertex (000 eqs. 2.81-2.82). Weights are kept in the form where every
+/// merge term carries its own eta: d^VC accumulates eta_i at each vertex it passes, and a merge
+/// divides by its eta_j.
 #[derive(Clone, Copy, Debug)]
 pub struct VcmWeights {
     pub power: Power,
@@ -211,6 +223,8 @@ pub struct VcmWeights {
     pub vc_factor: f32,
     /// 1 / (pi r^2 n_VM): the density estimate's normalisation.
     pub vm_normalization: f32,
+    /// UPG's clamped acceptance (000 eq. 2.80): mis(pi r^2) and mis(n_VM); `None` for VCM.
+    clamp: Option<(f32, f32)>,
 }
 
 impl VcmWeights {
@@ -225,12 +239,40 @@ impl VcmWeights {
             vm_factor: if both { power.mis(eta_vcm) } else { 0.0 },
             vc_factor: if both { power.mis(1.0 / eta_vcm) } else { 0.0 },
             vm_normalization: 1.0 / eta_vcm,
+            clamp: None,
+        }
+    }
+
+    /// UPG's weights: both VC and VM, each merge's acceptance clamped to 1 (000 eq. 2.80).
+    pub fn clamped(power: Power, radius: f32, light_paths: f32) -> Self {
+        let area = std::f32::consts::PI * radius * radius;
+        VcmWeights {
+            clamp: Some((power.mis(area), power.mis(light_paths))),
+            ..VcmWeights::new(power, radius, light_paths, true, true)
         }
     }
 
     #[inline]
     pub fn mis(&self, x: f32) -> f32 {
         self.power.mis(x)
+    }
+
+    /// mis(eta_j) of a merge at a vertex whose gathering-side area pdf p gives
+    /// `inv_pdf` = mis(1 / p) (a d^VCM on arrival): n_VM min(pi r^2, 1 / p).
+    pub fn eta(&self, inv_pdf: f32) -> f32 {
+        match self.clamp {
+            Some((area, paths)) => paths * area.min(inv_pdf),
+            None => self.vm_factor,
+        }
+    }
+
+    /// [`Self::eta`] for a merge that may not be a technique.
+    pub fn eta_if(&self, valid: bool, inv_pdf: f32) -> f32 {
+        if valid {
+            self.eta(inv_pdf)
+        } else {
+            0.0
+        }
     }
 
     /// y_0 on a light (001 eqs. (31)-(33); sec. 5.1-5.2 for infinite and delta lights).
@@ -251,7 +293,7 @@ impl VcmWeights {
             d_vcm: self.mis(direct_pdf_a / emission_pdf_w),
             d_vc,
             d_vm: d_vc * self.vc_factor,
-            pending_vm: 0.0,
+            ..VcmVertex::default()
         }
     }
 
@@ -260,9 +302,7 @@ impl VcmWeights {
     pub fn camera_origin(&self, camera_pdf_w: f32) -> VcmVertex {
         VcmVertex {
             d_vcm: self.mis(self.light_paths / camera_pdf_w),
-            d_vc: 0.0,
-            d_vm: 0.0,
-            pending_vm: 0.0,
+            ..VcmVertex::default()
         }
     }
 
@@ -270,21 +310,24 @@ impl VcmWeights {
     /// geometry part). The first segment from an infinite light has no distance term
     /// (001 sec. 5.1): `with_distance = false`.
     pub fn arrive(&self, v: &mut VcmVertex, distance: f32, cos_in: f32, with_distance: bool) {
-        if with_distance {
-            v.d_vcm *= self.mis(distance * distance);
-        }
+        let d2 = if with_distance {
+            self.mis(distance * distance)
+        } else {
+            1.0
+        };
         let inv = 1.0 / self.mis(cos_in);
-        v.d_vcm *= inv;
+        v.d_vcm *= d2 * inv;
         v.d_vc *= inv;
         v.d_vm *= inv;
         v.pending_vm *= inv;
+        // The pending merge's vertex is sampled from here across this segment.
+        v.pending_g /= d2;
     }
 
     /// Scattering at a vertex (001 eqs. (34)-(36), the sampling part): `pdf_w` the pdf of the
     /// sampled direction, `rev_pdf_w` of the reverse, `cos_out` at the sampled direction.
-    /// `merge_here` says whether merging at this vertex is a technique: its terms are
-    /// mis(eta_VCM) in d^VC and 1 in d^VM (001 eqs. (35)-(36)), with eta_VCM the same for every
-    /// vertex (no clamping), so d^VM stays d^VC / eta_VCM when both VC and VM run.
+    /// `merge_here` says whether merging at this vertex is a technique; its terms are eta_i in
+    /// d^VC and 1 in d^VM (001 eqs. (35)-(36), where eta_i = eta_VCM).
     pub fn scatter(
         &self,
         v: &mut VcmVertex,
@@ -300,33 +343,49 @@ impl VcmWeights {
             v.d_vc *= self.mis(cos_out);
             v.d_vm *= self.mis(cos_out);
         } else {
+            *v = self.settle(v, rev_pdf_w);
             let ratio = self.mis(cos_out / pdf_w);
-            let here = if merge_here == VmHere::Valid {
-                1.0
-            } else {
-                0.0
+            let (eta, here) = match merge_here {
+                VmHere::Valid => (self.eta(v.d_vcm), 1.0),
+                VmHere::Invalid | VmHere::Deferred => (0.0, 0.0),
             };
-            v.d_vc = ratio * (v.d_vc * self.mis(rev_pdf_w) + v.d_vcm + here * self.vm_factor);
+            v.d_vc = ratio * (v.d_vc * self.mis(rev_pdf_w) + v.d_vcm + eta);
             v.d_vm = ratio * (v.d_vm * self.mis(rev_pdf_w) + v.d_vcm * self.vc_factor + here);
             v.d_vcm = self.mis(1.0 / pdf_w);
             if merge_here == VmHere::Deferred {
                 v.pending_vm = ratio;
+                v.pending_g = self.mis(cos_out);
             }
         }
     }
 
-    /// Settles a [`VmHere::Deferred`] merge at the previous vertex once this vertex shows
-    /// whether the tentative rays could leave from it.
-    pub fn resolve(&self, v: &mut VcmVertex, valid: bool) {
-        if valid {
-            v.d_vc += v.pending_vm * self.vm_factor;
-            v.d_vm += v.pending_vm;
+    /// On arrival: a pending merge of the previous vertex is a technique only if this vertex
+    /// is a non-delta surface vertex the tentative rays can leave from.
+    pub fn drop_pending(&self, v: &mut VcmVertex, surface: bool) {
+        if !surface {
+            v.pending_vm = 0.0;
         }
-        v.pending_vm = 0.0;
+    }
+
+    /// `v` with its pending merge term added, once a use of the vertex fixes `rev_pdf_w`: the
+    /// pdf with which it samples the previous vertex, which makes that vertex's gathering-side
+    /// area pdf.
+    pub fn settle(&self, v: &VcmVertex, rev_pdf_w: f32) -> VcmVertex {
+        if v.pending_vm == 0.0 {
+            return *v;
+        }
+        let pdf = self.mis(rev_pdf_w) * v.pending_g;
+        VcmVertex {
+            d_vc: v.d_vc + v.pending_vm * self.eta(1.0 / pdf),
+            d_vm: v.d_vm + v.pending_vm,
+            pending_vm: 0.0,
+            pending_g: 0.0,
+            ..*v
+        }
     }
 
     /// An eye sub-path hits a light (s = 0; 001 eqs. (42)-(43)); the pdfs include the light's
-    /// pick probability.
+    /// pick probability. No merge is gathered from a light point, so a pending one is dropped.
     pub fn hit_light(&self, eye: &VcmVertex, direct_pdf_a: f32, emission_pdf_w: f32) -> f32 {
         let w_camera = self.mis(direct_pdf_a) * eye.d_vcm + self.mis(emission_pdf_w) * eye.d_vc;
         1.0 / (1.0 + w_camera)
@@ -335,12 +394,12 @@ impl VcmWeights {
     /// Light sampling (s = 1; 001 eqs. (44)-(45)). `light_pdf_w` is the pick probability times
     /// the solid-angle pdf of the light point at the receiver, `emission_pdf_w` the light's
     /// emission pdf of the connecting direction (without the pick), `bsdf` the eye vertex's
-    /// pdfs towards the light.
+    /// pdfs towards the light; `eye_eta` the merge at the eye vertex ([`Self::eta_if`]).
     #[allow(clippy::too_many_arguments)]
     pub fn light_sample(
         &self,
         eye: &VcmVertex,
-        eye_merge: bool,
+        eye_eta: f32,
         bsdf_pdf_w: f32,
         bsdf_rev_pdf_w: f32,
         light_pdf_w: f32,
@@ -350,44 +409,38 @@ impl VcmWeights {
         cos_at_light: f32,
         delta_light: bool,
     ) -> f32 {
+        let eye = self.settle(eye, bsdf_rev_pdf_w);
         let w_light = if delta_light {
             0.0
         } else {
             self.mis(bsdf_pdf_w / light_pdf_w)
         };
         let w_camera = self.mis(emission_pdf_w * cos_to_light / (direct_pdf_w * cos_at_light))
-            * (self.vm_term(eye_merge) + eye.d_vcm + eye.d_vc * self.mis(bsdf_rev_pdf_w));
+            * (eye_eta + eye.d_vcm + eye.d_vc * self.mis(bsdf_rev_pdf_w));
         1.0 / (w_light + 1.0 + w_camera)
     }
 
-    /// The merge at a connection's end vertex, as a share of the connection (001 eq. (40)).
-    fn vm_term(&self, merge_here: bool) -> f32 {
-        if merge_here {
-            self.vm_factor
-        } else {
-            0.0
-        }
-    }
-
     /// Connection of a light vertex and an eye vertex (s, t > 1; 001 eqs. (40)-(41)): each
-    /// side's area pdf of being sampled by the other, and each side's reverse pdf.
-    /// `*_merge`: whether merging at that end vertex is a technique.
+    /// side's area pdf of being sampled by the other, each side's reverse pdf, and the merges
+    /// at the two end vertices ([`Self::eta_if`]).
     #[allow(clippy::too_many_arguments)]
     pub fn connect(
         &self,
         light: &VcmVertex,
-        light_merge: bool,
+        light_eta: f32,
         eye: &VcmVertex,
-        eye_merge: bool,
+        eye_eta: f32,
         light_rev_pdf_w: f32,
         eye_rev_pdf_w: f32,
         light_pdf_a: f32,
         eye_pdf_a: f32,
     ) -> f32 {
+        let light = self.settle(light, light_rev_pdf_w);
+        let eye = self.settle(eye, eye_rev_pdf_w);
         let w_light = self.mis(eye_pdf_a)
-            * (self.vm_term(light_merge) + light.d_vcm + light.d_vc * self.mis(light_rev_pdf_w));
-        let w_camera = self.mis(light_pdf_a)
-            * (self.vm_term(eye_merge) + eye.d_vcm + eye.d_vc * self.mis(eye_rev_pdf_w));
+            * (light_eta + light.d_vcm + light.d_vc * self.mis(light_rev_pdf_w));
+        let w_camera =
+            self.mis(light_pdf_a) * (eye_eta + eye.d_vcm + eye.d_vc * self.mis(eye_rev_pdf_w));
         1.0 / (w_light + 1.0 + w_camera)
     }
 
@@ -396,20 +449,38 @@ impl VcmWeights {
     pub fn to_camera(
         &self,
         light: &VcmVertex,
-        light_merge: bool,
+        light_eta: f32,
         camera_pdf_a: f32,
         rev_pdf_w: f32,
     ) -> f32 {
+        let light = self.settle(light, rev_pdf_w);
         let w_light = self.mis(camera_pdf_a / self.light_paths)
-            * (self.vm_term(light_merge) + light.d_vcm + light.d_vc * self.mis(rev_pdf_w));
+            * (light_eta + light.d_vcm + light.d_vc * self.mis(rev_pdf_w));
         1.0 / (w_light + 1.0)
     }
 
     /// A merge of a light vertex at an eye vertex (001 eqs. (38)-(39)): `pdf_w` the eye BSDF's
-    /// pdf towards the light vertex's incoming direction, `rev_pdf_w` the reverse.
-    pub fn merge(&self, light: &VcmVertex, eye: &VcmVertex, pdf_w: f32, rev_pdf_w: f32) -> f32 {
-        let w_light = light.d_vcm * self.vc_factor + light.d_vm * self.mis(pdf_w);
-        let w_camera = eye.d_vcm * self.vc_factor + eye.d_vm * self.mis(rev_pdf_w);
+    /// pdf towards the light vertex's incoming direction, `rev_pdf_w` the reverse, `eta` the
+    /// merge's own ([`Self::eta`]). With connections, each side's sum over its techniques is
+    /// (d^VCM + d^VC mis(pdf)) / eta_j; without (bpm), d^VM holds the merges alone.
+    pub fn merge(
+        &self,
+        light: &VcmVertex,
+        eye: &VcmVertex,
+        pdf_w: f32,
+        rev_pdf_w: f32,
+        eta: f32,
+    ) -> f32 {
+        let light = self.settle(light, pdf_w);
+        let eye = self.settle(eye, rev_pdf_w);
+        let (w_light, w_camera) = if self.vm_factor > 0.0 {
+            (
+                (light.d_vcm + light.d_vc * self.mis(pdf_w)) / eta,
+                (eye.d_vcm + eye.d_vc * self.mis(rev_pdf_w)) / eta,
+            )
+        } else {
+            (light.d_vm * self.mis(pdf_w), eye.d_vm * self.mis(rev_pdf_w))
+        };
         1.0 / (w_light + 1.0 + w_camera)
     }
 }
@@ -420,6 +491,8 @@ pub struct VcmVertex {
     pub d_vcm: f32,
     pub d_vc: f32,
     pub d_vm: f32,
-    /// The factor of a [`VmHere::Deferred`] merge term, until [`VcmWeights::resolve`].
+    /// A [`VmHere::Deferred`] merge at the previous vertex: its factor in d^VC (before eta),
+    /// and mis(|cos| / d^2) of that vertex seen from this one.
     pub pending_vm: f32,
+    pub pending_g: f32,
 }

@@ -197,13 +197,15 @@ impl<'a> VertexCm<'a> {
     fn weights(&self, iteration: u64) -> VcmWeights {
         let i = (iteration + 1) as f32;
         let radius = (self.base_radius * i.powf(0.5 * (self.alpha - 1.0))).max(1e-7);
-        VcmWeights::new(
+        let (power, paths) = (
             Power(self.ctx.options.beta),
-            radius,
             self.ctx.camera.pixel_count() as f32,
-            self.modes.vc,
-            self.modes.vm,
-        )
+        );
+        if self.modes.merge == Merge::Density {
+            VcmWeights::new(power, radius, paths, self.modes.vc, self.modes.vm)
+        } else {
+            VcmWeights::clamped(power, radius, paths)
+        }
     }
 
     fn scene(&self) -> &Scene {
@@ -325,7 +327,7 @@ impl<'a> VertexCm<'a> {
             let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Importance) else {
                 break;
             };
-            w.resolve(&mut state.mis, !bsdf.is_delta());
+            w.drop_pending(&mut state.mis, !bsdf.is_delta());
             if !bsdf.is_delta() {
                 if self.modes.vc || self.modes.vm {
                     vertices.push(LightVertex {
@@ -389,7 +391,8 @@ impl<'a> VertexCm<'a> {
                 Merge::UpgLight => state.prev_surface,
                 Merge::UpgCamera => false,
             };
-            w.to_camera(&state.mis, merge_here, camera_pdf_a, eval.rev_pdf_w)
+            let eta = w.eta_if(merge_here, state.mis.d_vcm);
+            w.to_camera(&state.mis, eta, camera_pdf_a, eval.rev_pdf_w)
         };
         let contribution = state.throughput * eval.f * (weight * camera_pdf_a / w.light_paths);
         stats.rays += 1;
@@ -475,7 +478,7 @@ impl<'a> VertexCm<'a> {
         };
         let weight = w.light_sample(
             &state.mis,
-            merge_here,
+            w.eta_if(merge_here, state.mis.d_vcm),
             eval.pdf_w,
             eval.rev_pdf_w,
             pick * il.direct_pdf_w,
@@ -537,17 +540,24 @@ impl<'a> VertexCm<'a> {
         let light_pdf_a = light_eval.pdf_w * cos_eye / dist2;
         // Merging at either end: each end's neighbour across the connection is a non-delta
         // surface vertex; `upg` also needs the light vertex's predecessor to be one, and
-        // `upg-camera` the eye vertex's.
-        let (light_merge, eye_merge) = match self.modes.merge {
-            Merge::Density => (true, true),
-            Merge::UpgLight => (lv.after_surface, true),
-            Merge::UpgCamera => (true, state.prev_surface),
+        // `upg-camera` the eye vertex's. The gathering side's pdf of the merge vertex is the
+        // sub-path's own (its d^VCM) or, across the connection, the other end's.
+        let (light_eta, eye_eta) = match self.modes.merge {
+            Merge::Density => (w.vm_factor, w.vm_factor),
+            Merge::UpgLight => (
+                w.eta_if(lv.after_surface, lv.mis.d_vcm),
+                w.eta(w.mis(1.0 / light_pdf_a)),
+            ),
+            Merge::UpgCamera => (
+                w.eta(w.mis(1.0 / eye_pdf_a)),
+                w.eta_if(state.prev_surface, state.mis.d_vcm),
+            ),
         };
         let weight = w.connect(
             &lv.mis,
-            light_merge,
+            light_eta,
             &state.mis,
-            eye_merge,
+            eye_eta,
             light_eval.rev_pdf_w,
             eye_eval.rev_pdf_w,
             light_pdf_a,
@@ -591,7 +601,7 @@ impl<'a> VertexCm<'a> {
             let weight = if self.modes.ppm {
                 1.0
             } else {
-                w.merge(&lv.mis, &state.mis, eval.pdf_w, eval.rev_pdf_w)
+                w.merge(&lv.mis, &state.mis, eval.pdf_w, eval.rev_pdf_w, w.vm_factor)
             };
             sum += eval.f * lv.throughput * weight;
         });
@@ -663,6 +673,7 @@ impl<'a> VertexCm<'a> {
                 &state.mis,
                 link.to_eval.pdf_w,
                 link.to_eval.rev_pdf_w,
+                w.eta(light.d_vcm),
             );
             let roulette = self.roulette_probability(&q_bsdf, q.path_length);
             sum += q.throughput * link.value * (weight * inv_p_acc / roulette);
@@ -736,6 +747,7 @@ impl<'a> VertexCm<'a> {
                 &eye,
                 link.to_eval.rev_pdf_w,
                 link.to_eval.pdf_w,
+                w.eta(eye.d_vcm),
             );
             let roulette = self.roulette_probability(&prev.bsdf, prev.path_length);
             sum +=
@@ -869,7 +881,7 @@ impl<'a> VertexCm<'a> {
             let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Radiance) else {
                 break;
             };
-            w.resolve(&mut state.mis, !bsdf.is_delta());
+            w.drop_pending(&mut state.mis, !bsdf.is_delta());
             if !bsdf.is_delta() {
                 if self.modes.vc {
                     color += state.throughput
