@@ -45,6 +45,16 @@ pub enum MaterialKind {
     },
 }
 
+impl MaterialKind {
+    /// Mirror and glass scatter only into delta directions.
+    pub fn is_delta(&self) -> bool {
+        matches!(
+            self,
+            MaterialKind::Mirror { .. } | MaterialKind::Glass { .. }
+        )
+    }
+}
+
 /// A named material: how it scatters and what it emits (radiance, one-sided, on the side the
 /// geometric normal points to).
 #[derive(Clone, Debug, PartialEq)]
@@ -226,10 +236,7 @@ impl<'a> Bsdf<'a> {
 
     /// True when every lobe is a delta (mirror, glass): no connection or merge can use it.
     pub fn is_delta(&self) -> bool {
-        matches!(
-            self.kind,
-            MaterialKind::Mirror { .. } | MaterialKind::Glass { .. }
-        )
+        self.kind.is_delta()
     }
 
     /// `|cos|` between the geometric normal and `w`.

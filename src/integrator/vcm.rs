@@ -15,7 +15,7 @@
 //! over the techniques, and every technique evaluates the same pdfs.
 
 use super::mis::{Power, VcmVertex, VcmWeights, VmHere};
-use super::upg::acceptance::{AngularBound, Estimator, Outcome, PacketWidth};
+use super::upg::acceptance::{AngularBound, Estimator, Outcome, PacketWidth, StoredVerticesOnly};
 use super::{Integrator, IterationStats, RenderContext, Technique, UpgCounters};
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, BsdfEval, TransportMode};
@@ -803,7 +803,15 @@ impl<'a> VertexCm<'a> {
     ) -> Option<f32> {
         let bound = AngularBound::new(origin, ng, bsdf, target, w.radius).ok()?;
         let mut rng = tentative.next_rng();
-        let estimate = self.estimator.estimate(self.scene(), &bound, &mut rng);
+        // `upg` gathers light vertices, which lie on non-delta surfaces only; `upg-camera`
+        // gathers at wherever the eye sub-path lands.
+        let estimate = match self.modes.merge {
+            Merge::UpgLight => {
+                let tracer = StoredVerticesOnly(self.scene());
+                self.estimator.estimate(&tracer, &bound, &mut rng)
+            }
+            _ => self.estimator.estimate(self.scene(), &bound, &mut rng),
+        };
         stats.upg.merges += 1;
         stats.upg.trials += estimate.trials as u64;
         stats.upg.tentative_rays += estimate.rays as u64;

@@ -148,6 +148,15 @@ impl Scene {
         self.accel.intersect8(rays, active, hits)
     }
 
+    /// Whether a backend hit lies on a mirror or glass surface.
+    pub fn hits_delta_surface(&self, hit: &Hit) -> bool {
+        let material = match hit.primitive {
+            Primitive::Triangle(i) => self.triangle_materials[i as usize],
+            Primitive::Sphere(i) => self.sphere_materials[i as usize],
+        };
+        self.material(material).kind.is_delta()
+    }
+
     /// Turns a backend hit into a surface point with its material and light.
     pub fn surface_hit(&self, ray: &Ray, hit: Hit) -> SurfaceHit {
         let (material, light) = match hit.primitive {

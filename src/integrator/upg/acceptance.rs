@@ -54,6 +54,27 @@ impl TentativeTracer for Scene {
     }
 }
 
+/// The scene as `upg`'s tentative rays see it. A tentative ray stands for the light sub-path's
+/// next vertex, which is stored, and so can be gathered, only on a non-delta surface: a first
+/// hit on a mirror or glass is a failure.
+pub struct StoredVerticesOnly<'a>(pub &'a Scene);
+
+impl TentativeTracer for StoredVerticesOnly<'_> {
+    fn closest(&self, ray: &Ray) -> Option<f32> {
+        let hit = self.0.accel.intersect(ray)?;
+        (!self.0.hits_delta_surface(&hit)).then_some(hit.t)
+    }
+
+    fn closest8(&self, rays: &[Ray; PACKET], active: u8) -> [Option<f32>; PACKET] {
+        let mut hits = [None; PACKET];
+        self.0.intersect8(rays, active, &mut hits);
+        hits.map(|hit| {
+            hit.filter(|hit| !self.0.hits_delta_surface(hit))
+                .map(|hit| hit.t)
+        })
+    }
+}
+
 #[derive(Debug, Error, Clone, PartialEq)]
 pub enum AcceptanceError {
     #[error("a delta BSDF (mirror, glass) cannot be merged through")]
