@@ -103,14 +103,10 @@ impl Setup<'_> {
         let (index, pick) = lights.pick(rng.next_f32())?;
         let light = lights.get(index);
         let il = light.illuminate(position, rng.next_2d())?;
-        let shadow = if !il.distance.is_finite() {
-            vmerge::accel::Ray::spawn(position, ng, il.dir_to_light)
-        } else if light.is_delta() {
-            vmerge::accel::Ray::spawn_to(position, ng, il.position)
-        } else {
-            vmerge::accel::Ray::spawn_between(position, ng, il.position, il.normal)
-        };
-        if self.scene.occluded(&shadow) {
+        if self
+            .scene
+            .occluded(&il.shadow_ray(position, ng, light.is_delta()))
+        {
             return None;
         }
         let infinite = !il.distance.is_finite();

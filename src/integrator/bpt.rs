@@ -311,20 +311,8 @@ impl<'a> Bpt<'a> {
         }
         let lights = &self.scene().lights;
         let dir = state.ray.dir.normalize();
-        let (received, index) = match hit {
-            Some(h) => {
-                let Some(index) = h.light else {
-                    return Rgb::BLACK;
-                };
-                match lights.get(index).radiance(dir, h.ng) {
-                    Some(r) => (r, index),
-                    None => return Rgb::BLACK,
-                }
-            }
-            None => match (lights.background(dir), lights.sky()) {
-                (Some(r), Some(index)) => (r, index),
-                _ => return Rgb::BLACK,
-            },
+        let Some((received, index)) = lights.received(dir, hit.map(|h| (h.light, h.ng))) else {
+            return Rgb::BLACK;
         };
         if t == 2 {
             return received.radiance;
@@ -383,14 +371,10 @@ impl<'a> Bpt<'a> {
             )
         });
         stats.rays += 1;
-        let shadow = if !il.distance.is_finite() {
-            Ray::spawn(hit.position, hit.ng, il.dir_to_light)
-        } else if light.is_delta() {
-            Ray::spawn_to(hit.position, hit.ng, il.position)
-        } else {
-            Ray::spawn_between(hit.position, hit.ng, il.position, il.normal)
-        };
-        if self.scene().occluded(&shadow) {
+        if self
+            .scene()
+            .occluded(&il.shadow_ray(hit.position, hit.ng, light.is_delta()))
+        {
             return Rgb::BLACK;
         }
         il.radiance * eval.f * (weight * cos_at_eye / (pick * il.direct_pdf_w))

@@ -126,21 +126,7 @@ impl<'a> PathTracer<'a> {
         if eval.f.is_black() {
             return (Rgb::BLACK, 0);
         }
-        let shadow = if illumination.distance.is_finite() {
-            if light.is_delta() {
-                Ray::spawn_to(hit.position, hit.ng, illumination.position)
-            } else {
-                Ray::spawn_between(
-                    hit.position,
-                    hit.ng,
-                    illumination.position,
-                    illumination.normal,
-                )
-            }
-        } else {
-            Ray::spawn(hit.position, hit.ng, illumination.dir_to_light)
-        };
-        if scene.occluded(&shadow) {
+        if scene.occluded(&illumination.shadow_ray(hit.position, hit.ng, light.is_delta())) {
             return (Rgb::BLACK, 1);
         }
         let light_pdf_w = illumination.direct_pdf_w * pick;

@@ -409,20 +409,8 @@ impl<'a> VertexCm<'a> {
     fn emission(&self, w: &VcmWeights, state: &SubPath, hit: Option<&SurfaceHit>) -> Rgb {
         let lights = &self.scene().lights;
         let dir = state.ray.dir.normalize();
-        let (received, index) = match hit {
-            Some(h) => {
-                let Some(index) = h.light else {
-                    return Rgb::BLACK;
-                };
-                match lights.get(index).radiance(dir, h.ng) {
-                    Some(r) => (r, index),
-                    None => return Rgb::BLACK,
-                }
-            }
-            None => match (lights.background(dir), lights.sky()) {
-                (Some(r), Some(index)) => (r, index),
-                _ => return Rgb::BLACK,
-            },
+        let Some((received, index)) = lights.received(dir, hit.map(|h| (h.light, h.ng))) else {
+            return Rgb::BLACK;
         };
         if state.path_length == 1 {
             return received.radiance;
@@ -489,14 +477,10 @@ impl<'a> VertexCm<'a> {
             light.is_delta(),
         );
         stats.rays += 1;
-        let shadow = if !il.distance.is_finite() {
-            Ray::spawn(hit.position, hit.ng, il.dir_to_light)
-        } else if light.is_delta() {
-            Ray::spawn_to(hit.position, hit.ng, il.position)
-        } else {
-            Ray::spawn_between(hit.position, hit.ng, il.position, il.normal)
-        };
-        if self.scene().occluded(&shadow) {
+        if self
+            .scene()
+            .occluded(&il.shadow_ray(hit.position, hit.ng, light.is_delta()))
+        {
             return Rgb::BLACK;
         }
         il.radiance * eval.f * (weight * cos_to_light / (pick * il.direct_pdf_w))
@@ -657,17 +641,8 @@ impl<'a> VertexCm<'a> {
                 return;
             };
             // The light sub-path's quantities as they would be at the eye vertex.
-            let mut light = q.mis;
             let merge_at_q = self.modes.merge_here(true, q.after_surface);
-            w.scatter(
-                &mut light,
-                link.cos_from,
-                link.from_eval.pdf_w,
-                link.from_eval.rev_pdf_w,
-                false,
-                merge_at_q,
-            );
-            w.arrive(&mut light, link.distance, link.cos_to, true);
+            let light = link.carry(w, q.mis, merge_at_q);
             let weight = w.merge(
                 &light,
                 &state.mis,
@@ -729,17 +704,8 @@ impl<'a> VertexCm<'a> {
                 return;
             };
             // The eye sub-path's quantities as they would be at the light vertex.
-            let mut eye = prev.mis;
             let merge_at_prev = self.modes.merge_here(false, prev.prev_surface);
-            w.scatter(
-                &mut eye,
-                link.cos_from,
-                link.from_eval.pdf_w,
-                link.from_eval.rev_pdf_w,
-                false,
-                merge_at_prev,
-            );
-            w.arrive(&mut eye, link.distance, link.cos_to, true);
+            let eye = link.carry(w, prev.mis, merge_at_prev);
             // At the merge vertex the eye side samples towards the light vertex's predecessor:
             // the photon's BSDF pdfs, seen the other way round.
             let weight = w.merge(
@@ -959,6 +925,22 @@ struct Link {
 }
 
 impl Link {
+    /// The MIS quantities of the sub-path that ends at the link's first vertex (`at_from`),
+    /// carried across the link to its second (001 eqs. 34-36).
+    fn carry(&self, w: &VcmWeights, at_from: VcmVertex, merge_at_from: VmHere) -> VcmVertex {
+        let mut v = at_from;
+        w.scatter(
+            &mut v,
+            self.cos_from,
+            self.from_eval.pdf_w,
+            self.from_eval.rev_pdf_w,
+            false,
+            merge_at_from,
+        );
+        w.arrive(&mut v, self.distance, self.cos_to, true);
+        v
+    }
+
     fn new(from: &Bsdf, from_position: Vec3, to: &Bsdf, to_position: Vec3) -> Option<Link> {
         let d = to_position - from_position;
         let dist2 = d.length_squared();

@@ -11,7 +11,7 @@
 //! emitting that point and direction, per area times solid angle). Light selection
 //! probabilities are not included; [`Lights`] picks lights in proportion to their power.
 
-use crate::accel::Geometry;
+use crate::accel::{Geometry, Ray};
 use crate::bsdf::Material;
 use crate::color::Rgb;
 use crate::frame::Frame;
@@ -72,6 +72,21 @@ pub struct Illumination {
     /// Cosine at the light between its normal and the emitted direction (1 for point,
     /// directional and sky).
     pub cos_at_light: f32,
+}
+
+impl Illumination {
+    /// The shadow ray from the receiver `p` (geometric normal `ng`) to this light point:
+    /// towards the light for infinite lights, to the point itself for a point light, and
+    /// stopping short of the surface for area lights.
+    pub fn shadow_ray(&self, p: Vec3, ng: Vec3, delta: bool) -> Ray {
+        if !self.distance.is_finite() {
+            Ray::spawn(p, ng, self.dir_to_light)
+        } else if delta {
+            Ray::spawn_to(p, ng, self.position)
+        } else {
+            Ray::spawn_between(p, ng, self.position, self.normal)
+        }
+    }
 }
 
 /// The start of a light sub-path.
@@ -487,6 +502,19 @@ impl Lights {
     /// The sky light's index, if the scene has one.
     pub fn sky(&self) -> Option<u32> {
         self.sky
+    }
+
+    /// What a ray travelling along the unit `dir` receives where it ends: from the emitter
+    /// `hit` (its light index and geometric normal) or, leaving the scene (`None`), from the
+    /// sky; with the index of the light it came from.
+    pub fn received(&self, dir: Vec3, hit: Option<(Option<u32>, Vec3)>) -> Option<(Received, u32)> {
+        match hit {
+            Some((light, normal)) => {
+                let index = light?;
+                Some((self.get(index).radiance(dir, normal)?, index))
+            }
+            None => Some((self.background(dir)?, self.sky?)),
+        }
     }
 
     /// What a ray leaving the scene along the unit `dir` receives from the sky.
