@@ -7,7 +7,9 @@
 //! (`BptVertex`, 000 eqs. (2.50)-(2.51); `VcmWeights`, 001 eqs. (31)-(47)) from the pdfs the
 //! BSDFs, lights and camera give along the path, and each technique's weight is taken from the
 //! functions the integrators call. The BPT weights are also checked one by one against the
-//! power heuristic evaluated directly from products of area pdfs (000 eq. (2.47)).
+//! power heuristic evaluated directly from products of area pdfs (000 eq. (2.47)); the VCM
+//! weights are checked with merges by density estimation and with UPG's merges from either
+//! side, whose clamped acceptance (000 eqs. (2.80)-(2.82)) binds at the larger radii.
 
 mod common;
 

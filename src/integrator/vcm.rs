@@ -11,6 +11,11 @@
 //! nearby light vertices, each weighted by 001 eqs. 37-47. Every quantity is SmallVCM's "with
 //! the power already applied" form: `mis(x) = x^beta`.
 //!
+//! Unbiased photon gathering (`upg`, `upg-camera`; 000 secs. 2.4.3-2.4.6) is the same family
+//! with another merge: instead of a density estimate, an explicit connection from the merge
+//! vertex's neighbour on the gathering side, divided by the acceptance probability that
+//! tentative rays estimate (`upg/acceptance.rs`), weighted with the clamped acceptance.
+//!
 //! Russian roulette is left out of the pdfs the weights use: weights only need to sum to one
 //! over the techniques, and every technique evaluates the same pdfs.
 
