@@ -14,6 +14,7 @@
 //! Light-tracing splats of a fixed chunk of pixels are collected and added in chunk order, so
 //! the image does not depend on the thread count.
 
+use super::connection::{Connection, LightSample};
 use super::mis::{self, BptStep, BptVertex, Power};
 use super::{Integrator, IterationStats, RenderContext};
 use crate::accel::Ray;
@@ -338,46 +339,29 @@ impl<'a> Bpt<'a> {
         rng: &mut Rng,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let lights = &self.scene().lights;
-        let u_pick = rng.next_f32();
-        let u = rng.next_2d();
-        if !self.filter.allows(1, state.index + 1) {
-            return Rgb::BLACK;
-        }
-        let Some((index, pick)) = lights.pick(u_pick) else {
+        let sample = LightSample::draw(self.scene(), hit, bsdf, rng);
+        let Some(ls) = sample.filter(|_| self.filter.allows(1, state.index + 1)) else {
             return Rgb::BLACK;
         };
-        let light = lights.get(index);
-        let Some(il) = light.illuminate(hit.position, u) else {
-            return Rgb::BLACK;
-        };
-        let eval = bsdf.eval(il.dir_to_light);
-        if eval.f.is_black() {
-            return Rgb::BLACK;
-        }
-        let cos_at_eye = bsdf.cos_theta(il.dir_to_light);
         let weight = self.filter.weight(|| {
             mis::bpt_light_sample(
                 self.power,
                 &state.mis,
-                eval.pdf_w,
-                eval.rev_pdf_w,
-                pick * il.direct_pdf_w,
-                il.direct_pdf_w,
-                il.emission_pdf_w,
-                cos_at_eye,
-                il.cos_at_light,
-                light.is_delta(),
+                ls.eval.pdf_w,
+                ls.eval.rev_pdf_w,
+                ls.pdf_w(),
+                ls.il.direct_pdf_w,
+                ls.il.emission_pdf_w,
+                ls.cos_at_receiver,
+                ls.il.cos_at_light,
+                ls.light.is_delta(),
             )
         });
         stats.rays += 1;
-        if self
-            .scene()
-            .occluded(&il.shadow_ray(hit.position, hit.ng, light.is_delta()))
-        {
+        if !ls.visible(self.scene(), hit) {
             return Rgb::BLACK;
         }
-        il.radiance * eval.f * (weight * cos_at_eye / (pick * il.direct_pdf_w))
+        ls.contribution(weight)
     }
 
     /// s, t >= 2: the eye vertex `hit` connected to the light vertex `lv`.
@@ -389,35 +373,22 @@ impl<'a> Bpt<'a> {
         lv: &LightVertex,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let to_light = lv.position - hit.position;
-        let dist2 = to_light.length_squared();
-        if dist2 <= 0.0 {
-            return Rgb::BLACK;
-        }
-        let dir = to_light / dist2.sqrt();
-        let eye_eval = bsdf.eval(dir);
-        if eye_eval.f.is_black() {
-            return Rgb::BLACK;
-        }
         let material = &self.scene().material(lv.material).kind;
         let Some(light_bsdf) = Bsdf::new(material, lv.ng, lv.wo, TransportMode::Importance) else {
             return Rgb::BLACK;
         };
-        let light_eval = light_bsdf.eval(-dir);
-        if light_eval.f.is_black() {
+        let Some(c) = Connection::new(bsdf, hit.position, &light_bsdf, lv.position) else {
             return Rgb::BLACK;
-        }
-        let cos_eye = bsdf.cos_theta(dir);
-        let cos_light = light_bsdf.cos_theta(dir);
+        };
         let weight = self.filter.weight(|| {
             mis::bpt_connect(
                 self.power,
                 &lv.mis,
                 &state.mis,
-                light_eval.rev_pdf_w,
-                eye_eval.rev_pdf_w,
-                eye_eval.pdf_w * cos_light / dist2,
-                light_eval.pdf_w * cos_eye / dist2,
+                c.to_eval.rev_pdf_w,
+                c.from_eval.rev_pdf_w,
+                c.to_pdf_a(),
+                c.from_pdf_a(),
             )
         });
         stats.rays += 1;
@@ -429,7 +400,7 @@ impl<'a> Bpt<'a> {
         )) {
             return Rgb::BLACK;
         }
-        eye_eval.f * light_eval.f * lv.throughput * (weight * cos_eye * cos_light / dist2)
+        c.value * lv.throughput * weight
     }
 
     /// Traces the eye sub-path of `pixel` against its light sub-path `light_path`.

@@ -6,6 +6,7 @@ use crate::render::RenderOptions;
 use crate::scene::{Camera, Scene};
 
 pub mod bpt;
+pub mod connection;
 pub mod mis;
 pub mod pt;
 pub mod upg;

@@ -1,6 +1,7 @@
 //! Path tracing with next-event estimation, combined with BSDF sampling by multiple importance
 //! sampling (power heuristic with exponent `beta`; 000 sec. 2.2, Veach's thesis ch. 9).
 
+use super::connection::LightSample;
 use super::{Integrator, IterationStats, RenderContext};
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
@@ -113,33 +114,18 @@ impl<'a> PathTracer<'a> {
     /// Next-event estimation: one light sample, weighted against BSDF sampling.
     fn sample_light(&self, hit: &SurfaceHit, bsdf: &Bsdf, rng: &mut Rng) -> (Rgb, u64) {
         let scene = self.ctx.scene;
-        let u_pick = rng.next_f32();
-        let u = rng.next_2d();
-        let Some((index, pick)) = scene.lights.pick(u_pick) else {
+        let Some(ls) = LightSample::draw(scene, hit, bsdf, rng) else {
             return (Rgb::BLACK, 0);
         };
-        let light = scene.lights.get(index);
-        let Some(illumination) = light.illuminate(hit.position, u) else {
-            return (Rgb::BLACK, 0);
-        };
-        let eval = bsdf.eval(illumination.dir_to_light);
-        if eval.f.is_black() {
-            return (Rgb::BLACK, 0);
-        }
-        if scene.occluded(&illumination.shadow_ray(hit.position, hit.ng, light.is_delta())) {
+        if !ls.visible(scene, hit) {
             return (Rgb::BLACK, 1);
         }
-        let light_pdf_w = illumination.direct_pdf_w * pick;
-        let weight = if light.is_delta() {
+        let weight = if ls.light.is_delta() {
             1.0
         } else {
-            self.mis(light_pdf_w, eval.pdf_w)
+            self.mis(ls.pdf_w(), ls.eval.pdf_w)
         };
-        let cos = bsdf.cos_theta(illumination.dir_to_light);
-        (
-            illumination.radiance * eval.f * (cos * weight / light_pdf_w),
-            1,
-        )
+        (ls.contribution(weight), 1)
     }
 }
 

@@ -19,11 +19,12 @@
 //! Russian roulette is left out of the pdfs the weights use: weights only need to sum to one
 //! over the techniques, and every technique evaluates the same pdfs.
 
+use super::connection::{Connection, LightSample};
 use super::mis::{Power, VcmVertex, VcmWeights, VmHere};
 use super::upg::acceptance::{AngularBound, Estimator, Outcome, PacketWidth, StoredVerticesOnly};
 use super::{Integrator, IterationStats, RenderContext, Technique, UpgCounters};
 use crate::accel::Ray;
-use crate::bsdf::{Bsdf, BsdfEval, TransportMode};
+use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::hashgrid::HashGrid;
@@ -448,21 +449,9 @@ impl<'a> VertexCm<'a> {
         rng: &mut Rng,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let lights = &self.scene().lights;
-        let u_pick = rng.next_f32();
-        let u = rng.next_2d();
-        let Some((index, pick)) = lights.pick(u_pick) else {
+        let Some(ls) = LightSample::draw(self.scene(), hit, bsdf, rng) else {
             return Rgb::BLACK;
         };
-        let light = lights.get(index);
-        let Some(il) = light.illuminate(hit.position, u) else {
-            return Rgb::BLACK;
-        };
-        let eval = bsdf.eval(il.dir_to_light);
-        if eval.f.is_black() {
-            return Rgb::BLACK;
-        }
-        let cos_to_light = bsdf.cos_theta(il.dir_to_light);
         // Merging here: `upg` would gather from the light point itself, which it does not.
         let merge_here = match self.modes.merge {
             Merge::Density => true,
@@ -472,23 +461,20 @@ impl<'a> VertexCm<'a> {
         let weight = w.light_sample(
             &state.mis,
             w.eta_if(merge_here, state.mis.d_vcm),
-            eval.pdf_w,
-            eval.rev_pdf_w,
-            pick * il.direct_pdf_w,
-            il.direct_pdf_w,
-            il.emission_pdf_w,
-            cos_to_light,
-            il.cos_at_light,
-            light.is_delta(),
+            ls.eval.pdf_w,
+            ls.eval.rev_pdf_w,
+            ls.pdf_w(),
+            ls.il.direct_pdf_w,
+            ls.il.emission_pdf_w,
+            ls.cos_at_receiver,
+            ls.il.cos_at_light,
+            ls.light.is_delta(),
         );
         stats.rays += 1;
-        if self
-            .scene()
-            .occluded(&il.shadow_ray(hit.position, hit.ng, light.is_delta()))
-        {
+        if !ls.visible(self.scene(), hit) {
             return Rgb::BLACK;
         }
-        il.radiance * eval.f * (weight * cos_to_light / (pick * il.direct_pdf_w))
+        ls.contribution(weight)
     }
 
     /// Connects an eye vertex to a light vertex (s, t > 1; 001 eqs. 40-41).
@@ -501,32 +487,15 @@ impl<'a> VertexCm<'a> {
         lv: &LightVertex,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let to_light = lv.position - hit.position;
-        let dist2 = to_light.length_squared();
-        if dist2 <= 0.0 {
-            return Rgb::BLACK;
-        }
-        let distance = dist2.sqrt();
-        let dir = to_light / distance;
-        let eye_eval = bsdf.eval(dir);
-        if eye_eval.f.is_black() {
-            return Rgb::BLACK;
-        }
-        let light_material = &self.scene().material(lv.material).kind;
-        let Some(light_bsdf) = Bsdf::new(light_material, lv.ng, lv.wo, TransportMode::Importance)
+        let Some(light_bsdf) = self.bsdf_at(lv.material, lv.ng, lv.wo, TransportMode::Importance)
         else {
             return Rgb::BLACK;
         };
-        let light_eval = light_bsdf.eval(-dir);
-        if light_eval.f.is_black() {
+        let Some(c) = Connection::new(bsdf, hit.position, &light_bsdf, lv.position) else {
             return Rgb::BLACK;
-        }
-        let cos_eye = bsdf.cos_theta(dir);
-        let cos_light = light_bsdf.cos_theta(dir);
-        let geometry = cos_eye * cos_light / dist2;
-        // Solid-angle pdfs turned into area pdfs at the other end.
-        let eye_pdf_a = eye_eval.pdf_w * cos_light / dist2;
-        let light_pdf_a = light_eval.pdf_w * cos_eye / dist2;
+        };
+        // Area pdfs of each end as the other end samples it.
+        let (eye_pdf_a, light_pdf_a) = (c.to_pdf_a(), c.from_pdf_a());
         // Merging at either end: each end's neighbour across the connection is a non-delta
         // surface vertex; `upg` also needs the light vertex's predecessor to be one, and
         // `upg-camera` the eye vertex's. The gathering side's pdf of the merge vertex is the
@@ -547,8 +516,8 @@ impl<'a> VertexCm<'a> {
             light_eta,
             &state.mis,
             eye_eta,
-            light_eval.rev_pdf_w,
-            eye_eval.rev_pdf_w,
+            c.to_eval.rev_pdf_w,
+            c.from_eval.rev_pdf_w,
             light_pdf_a,
             eye_pdf_a,
         );
@@ -561,7 +530,7 @@ impl<'a> VertexCm<'a> {
         )) {
             return Rgb::BLACK;
         }
-        eye_eval.f * light_eval.f * lv.throughput * (weight * geometry)
+        c.value * lv.throughput * weight
     }
 
     /// Merges an eye vertex with the light vertices around it (001 eqs. 38-39), not yet
@@ -647,7 +616,7 @@ impl<'a> VertexCm<'a> {
             };
             // The light sub-path's quantities as they would be at the eye vertex.
             let merge_at_q = self.modes.merge_here(true, q.after_surface);
-            let light = link.carry(w, q.mis, merge_at_q);
+            let light = carry(w, &link, q.mis, merge_at_q);
             let weight = w.merge(
                 &light,
                 &state.mis,
@@ -710,7 +679,7 @@ impl<'a> VertexCm<'a> {
             };
             // The eye sub-path's quantities as they would be at the light vertex.
             let merge_at_prev = self.modes.merge_here(false, prev.prev_surface);
-            let eye = link.carry(w, prev.mis, merge_at_prev);
+            let eye = carry(w, &link, prev.mis, merge_at_prev);
             // At the merge vertex the eye side samples towards the light vertex's predecessor:
             // the photon's BSDF pdfs, seen the other way round.
             let weight = w.merge(
@@ -747,8 +716,8 @@ impl<'a> VertexCm<'a> {
         (from, from_position, from_ng): (&Bsdf, Vec3, Vec3),
         (to, to_position, to_ng): (&Bsdf, Vec3, Vec3),
         stats: &mut IterationStats,
-    ) -> Option<Link> {
-        Link::new(from, from_position, to, to_position).filter(|_| {
+    ) -> Option<Connection> {
+        Connection::new(from, from_position, to, to_position).filter(|_| {
             stats.rays += 1;
             !self.scene().occluded(&Ray::spawn_between(
                 from_position,
@@ -917,58 +886,20 @@ impl<'a> VertexCm<'a> {
     }
 }
 
-/// The explicit connection of a UPG merge between a vertex and the vertex it gathers at.
-struct Link {
-    /// f_from * G * f_to (000 eq. 2.67) without visibility.
-    value: Rgb,
-    /// The first vertex's pdfs towards the second, and the second's back.
-    from_eval: BsdfEval,
-    to_eval: BsdfEval,
-    cos_from: f32,
-    cos_to: f32,
-    distance: f32,
-}
-
-impl Link {
-    /// The MIS quantities of the sub-path that ends at the link's first vertex (`at_from`),
-    /// carried across the link to its second (001 eqs. 34-36).
-    fn carry(&self, w: &VcmWeights, at_from: VcmVertex, merge_at_from: VmHere) -> VcmVertex {
-        let mut v = at_from;
-        w.scatter(
-            &mut v,
-            self.cos_from,
-            self.from_eval.pdf_w,
-            self.from_eval.rev_pdf_w,
-            false,
-            merge_at_from,
-        );
-        w.arrive(&mut v, self.distance, self.cos_to, true);
-        v
-    }
-
-    fn new(from: &Bsdf, from_position: Vec3, to: &Bsdf, to_position: Vec3) -> Option<Link> {
-        let d = to_position - from_position;
-        let dist2 = d.length_squared();
-        if dist2 <= 0.0 {
-            return None;
-        }
-        let distance = dist2.sqrt();
-        let dir = d / distance;
-        let from_eval = from.eval(dir);
-        let to_eval = to.eval(-dir);
-        if from_eval.f.is_black() || to_eval.f.is_black() {
-            return None;
-        }
-        let (cos_from, cos_to) = (from.cos_theta(dir), to.cos_theta(-dir));
-        Some(Link {
-            value: from_eval.f * to_eval.f * (cos_from * cos_to / dist2),
-            from_eval,
-            to_eval,
-            cos_from,
-            cos_to,
-            distance,
-        })
-    }
+/// The MIS quantities of the sub-path that ends at the first vertex of `c` (`at_from`),
+/// carried across it to the second (001 eqs. 34-36).
+fn carry(w: &VcmWeights, c: &Connection, at_from: VcmVertex, merge_at_from: VmHere) -> VcmVertex {
+    let mut v = at_from;
+    w.scatter(
+        &mut v,
+        c.cos_from,
+        c.from_eval.pdf_w,
+        c.from_eval.rev_pdf_w,
+        false,
+        merge_at_from,
+    );
+    w.arrive(&mut v, c.distance, c.cos_to, true);
+    v
 }
 
 /// The random numbers of one eye sub-path's tentative rays: one stream per merge, so an

@@ -1,0 +1,110 @@
+//! What the integrators compute alike around their MIS weights: a light point sampled for a
+//! surface point (next-event estimation), and the deterministic connection of two vertices.
+
+use crate::bsdf::{Bsdf, BsdfEval};
+use crate::color::Rgb;
+use crate::light::{Illumination, Light};
+use crate::sampling::Rng;
+use crate::scene::{Scene, SurfaceHit};
+use glam::Vec3;
+
+/// A light point chosen by light sampling, as the receiver's BSDF sees it.
+pub struct LightSample<'s> {
+    pub light: &'s Light,
+    /// Probability of having picked this light.
+    pub pick: f32,
+    pub il: Illumination,
+    /// The receiver's BSDF towards the light, and its |cos| there.
+    pub eval: BsdfEval,
+    pub cos_at_receiver: f32,
+}
+
+impl<'s> LightSample<'s> {
+    /// Draws the pick and the point (always three numbers, so the streams of every technique
+    /// stay aligned) and returns the sample when it can contribute.
+    pub fn draw(scene: &'s Scene, hit: &SurfaceHit, bsdf: &Bsdf, rng: &mut Rng) -> Option<Self> {
+        let u_pick = rng.next_f32();
+        let u = rng.next_2d();
+        let (index, pick) = scene.lights.pick(u_pick)?;
+        let light = scene.lights.get(index);
+        let il = light.illuminate(hit.position, u)?;
+        let eval = bsdf.eval(il.dir_to_light);
+        if eval.f.is_black() {
+            return None;
+        }
+        Some(LightSample {
+            light,
+            pick,
+            il,
+            eval,
+            cos_at_receiver: bsdf.cos_theta(il.dir_to_light),
+        })
+    }
+
+    /// Pick probability times the light point's solid-angle pdf at the receiver.
+    pub fn pdf_w(&self) -> f32 {
+        self.pick * self.il.direct_pdf_w
+    }
+
+    /// Whether nothing lies between the receiver and the light point.
+    pub fn visible(&self, scene: &Scene, hit: &SurfaceHit) -> bool {
+        let shadow = self
+            .il
+            .shadow_ray(hit.position, hit.ng, self.light.is_delta());
+        !scene.occluded(&shadow)
+    }
+
+    /// The estimate L f |cos| / pdf, weighted.
+    pub fn contribution(&self, weight: f32) -> Rgb {
+        self.il.radiance * self.eval.f * (weight * self.cos_at_receiver / self.pdf_w())
+    }
+}
+
+/// Two vertices joined deterministically (a BPT connection, a UPG merge), visibility aside.
+pub struct Connection {
+    /// f_from G f_to (000 eq. 2.67).
+    pub value: Rgb,
+    /// The first vertex's pdfs towards the second, and the second's towards the first.
+    pub from_eval: BsdfEval,
+    pub to_eval: BsdfEval,
+    pub cos_from: f32,
+    pub cos_to: f32,
+    pub distance: f32,
+}
+
+impl Connection {
+    /// `None` when either BSDF sends nothing along the connecting segment.
+    pub fn new(from: &Bsdf, from_position: Vec3, to: &Bsdf, to_position: Vec3) -> Option<Self> {
+        let d = to_position - from_position;
+        let dist2 = d.length_squared();
+        if dist2 <= 0.0 {
+            return None;
+        }
+        let distance = dist2.sqrt();
+        let dir = d / distance;
+        let from_eval = from.eval(dir);
+        let to_eval = to.eval(-dir);
+        if from_eval.f.is_black() || to_eval.f.is_black() {
+            return None;
+        }
+        let (cos_from, cos_to) = (from.cos_theta(dir), to.cos_theta(-dir));
+        Some(Connection {
+            value: from_eval.f * to_eval.f * (cos_from * cos_to / dist2),
+            from_eval,
+            to_eval,
+            cos_from,
+            cos_to,
+            distance,
+        })
+    }
+
+    /// Area pdf of the second vertex when the first samples it.
+    pub fn to_pdf_a(&self) -> f32 {
+        self.from_eval.pdf_w * self.cos_to / (self.distance * self.distance)
+    }
+
+    /// Area pdf of the first vertex when the second samples it.
+    pub fn from_pdf_a(&self) -> f32 {
+        self.to_eval.pdf_w * self.cos_from / (self.distance * self.distance)
+    }
+}
