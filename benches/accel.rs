@@ -18,7 +18,7 @@ use vmerge::scene::{self, LoadOptions};
 /// Rays per workload: a multiple of the packet width.
 const RAYS: usize = 100_000;
 /// Timed rounds of the summary table.
-const ROUNDS: usize = 7;
+const ROUNDS: usize = 25;
 
 /// A bumpy heightfield of about 1M triangles (sums of sines, so it needs no files and no noise
 /// library) closed by a box of 12 large triangles, so that almost every ray hits something.
@@ -85,11 +85,8 @@ fn workload(accel: &dyn Accel, region: (Vec3, Vec3), seed: u64) -> Workload {
         let ray = Ray::new(origin, uniform_sphere(rng.next_2d()));
         if let Some(hit) = accel.intersect(&ray) {
             // The side the ray arrived from, where a path would continue.
-            let n = if hit.ng.dot(ray.dir) < 0.0 {
-                hit.ng
-            } else {
-                -hit.ng
-            };
+            let ng = hit.ng.normalize();
+            let n = if ng.dot(ray.dir) < 0.0 { ng } else { -ng };
             points.push((ray.at(hit.t), n));
         }
     }

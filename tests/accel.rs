@@ -143,13 +143,10 @@ fn test_rays(g: &Geometry, reference: &dyn Accel) -> (Vec<Ray>, Vec<bool>) {
     while on_surface < 25_000 {
         let ray = Ray::new(random_origin(&mut rng), uniform_sphere(rng.next_2d()));
         if let Some(hit) = reference.intersect(&ray) {
-            let n = if hit.ng.dot(ray.dir) < 0.0 {
-                hit.ng
-            } else {
-                -hit.ng
-            };
+            let ng = hit.ng.normalize();
+            let n = if ng.dot(ray.dir) < 0.0 { ng } else { -ng };
             let dir = Frame::from_z(n).to_world(cosine_hemisphere(rng.next_2d()));
-            rays.push(Ray::spawn(ray.at(hit.t), hit.ng, dir));
+            rays.push(Ray::spawn(ray.at(hit.t), ng, dir));
             on_surface += 1;
         }
     }
@@ -176,14 +173,20 @@ fn shares_vertex(g: &Geometry, a: Primitive, b: Primitive) -> bool {
     }
 }
 
-/// Same hit: same primitive and t within 1e-4 relative. On a shared edge or vertex either
-/// adjacent triangle is a correct answer, so a neighbour with the same t is accepted there.
+/// Same hit: same primitive, t within 1e-4 relative and normals pointing the same way. On a
+/// shared edge or vertex either adjacent triangle is a correct answer, so a neighbour with the
+/// same t is accepted there.
 fn same_hit(g: &Geometry, a: Option<Hit>, b: Option<Hit>) -> bool {
     match (a, b) {
         (None, None) => true,
         (Some(a), Some(b)) => {
             let t_ok = (a.t - b.t).abs() <= 1e-4 * a.t.abs().max(1.0);
-            t_ok && (a.primitive == b.primitive || shares_vertex(g, a.primitive, b.primitive))
+            let same_normal = a.ng.normalize().dot(b.ng.normalize()) > 1.0 - 1e-4;
+            t_ok && if a.primitive == b.primitive {
+                same_normal
+            } else {
+                shares_vertex(g, a.primitive, b.primitive)
+            }
         }
         _ => false,
     }
@@ -239,9 +242,6 @@ fn embree_and_bvh_agree_on_100k_rays() {
         rays.len(),
         mismatches.first()
     );
-    for hit in rays.iter().filter_map(|r| bvh.intersect(r)).take(1000) {
-        assert!((hit.ng.length() - 1.0).abs() < 1e-4);
-    }
 }
 
 fn packets_match_single_rays(accel: &dyn Accel, rays: &[Ray]) {

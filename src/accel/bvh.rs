@@ -395,7 +395,7 @@ impl Bvh {
                     primitive: Primitive::Triangle(leaf.triangles[lane]),
                     u,
                     v,
-                    ng: (b - a).cross(c - a).normalize(),
+                    ng: (b - a).cross(c - a),
                 }
             }
             HitRef::Sphere(i) => Hit {

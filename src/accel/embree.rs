@@ -231,9 +231,8 @@ impl EmbreeScene {
             ng,
         } = h;
         if geom_id == self.triangle_geometry {
-            // Embree's Ng (same winding as the Hit contract, not unit length) rather than one
-            // recomputed from the vertices: reading those again is a cache miss on large meshes.
-            let ng = ng.normalize();
+            // Embree's Ng (same winding as the Hit contract) rather than one recomputed from
+            // the vertices: reading those again is a cache miss on large meshes.
             Some(Hit {
                 t,
                 primitive: Primitive::Triangle(prim_id),

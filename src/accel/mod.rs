@@ -101,8 +101,11 @@ pub struct Hit {
     /// Barycentrics of a triangle hit: `p = (1 - u - v) p0 + u p1 + v p2`; zero for spheres.
     pub u: f32,
     pub v: f32,
-    /// Unit geometric normal: for a triangle `normalize((p1 - p0) x (p2 - p0))` (the side from
-    /// which its vertices are counter-clockwise), for a sphere the outward normal.
+    /// Geometric normal: for a triangle a positive multiple of `(p1 - p0) x (p2 - p0)` (the side
+    /// from which its vertices are counter-clockwise), not of unit length; for a sphere the unit
+    /// outward normal. Triangle normals are left as Embree returns them because many queries
+    /// (tentative rays, for one) never read them, and normalising costs a tenth of a query on
+    /// small scenes; [`crate::scene::Scene::intersect`] normalises.
     pub ng: Vec3,
 }
 

@@ -172,7 +172,7 @@ impl Scene {
         SurfaceHit {
             hit,
             position: ray.at(hit.t),
-            ng: hit.ng,
+            ng: hit.ng.normalize(),
             material,
             light,
         }
