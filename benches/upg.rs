@@ -3,105 +3,234 @@
 //! mesh (the 331k-triangle conference room from ../shared/scenes, skipped when absent).
 //! Run: `cargo bench --bench upg`.
 //!
-//! The merges are realistic ones: the origin is a vertex of a random walk from the camera and
-//! the target lies within the merge radius of where a BSDF-sampled ray from it lands, as when a
-//! light sub-path ends near an eye vertex. After criterion's figures a table compares both
-//! widths measured alternately in one run.
+//! Merges come in gathers, as in rendering: all the merges found around one eye vertex are
+//! estimated together, so packets can fill their lanes from all of them. A gather's geometry is
+//! real: a vertex of a random walk from the camera and the point x where a BSDF-sampled ray
+//! from it lands. `upg-camera` gathers have one origin (that vertex) and K targets within the
+//! merge radius of x (the light vertices found there); `upg` gathers have one target (x) and K
+//! origins (the walk vertex, and surface points seen from x: the light vertices'
+//! predecessors). The number K of merges per gather grows with the light paths per iteration
+//! (the pixel count) times pi r^2: about 1.5 at 256x256 and 15 at 768x768 on `cornell-glossy`
+//! at its default radius. After criterion's figures a table compares both widths measured
+//! alternately in one run, for K = 1, 4 and 16, and the tracing alone.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
+use std::cell::RefCell;
 use std::hint::black_box;
 use std::path::Path;
 use std::time::{Duration, Instant};
-use vmerge::accel::{AccelKind, Ray};
+use vmerge::accel::{AccelKind, Ray, PACKET};
 use vmerge::bsdf::{Bsdf, TransportMode};
 use vmerge::frame::Frame;
-use vmerge::integrator::upg::acceptance::{AngularBound, Estimator, PacketWidth};
-use vmerge::sampling::{concentric_disk, Rng, Stream};
+use vmerge::integrator::upg::acceptance::{AngularBound, Estimator, PacketWidth, TentativeTracer};
+use vmerge::sampling::{concentric_disk, cosine_hemisphere, Rng, Stream};
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
+/// Merges per pass, whatever the gather size.
 const MERGES: usize = 4096;
+const GATHER_SIZES: [usize; 3] = [1, 4, 16];
 const WALK_LENGTH: usize = 4;
+const PASSES: u64 = 8;
 
-/// One merge: the origin vertex (position, normal, material, `wo`) and the target point.
-struct Merge {
+/// A non-delta surface vertex tentative rays can leave from.
+#[derive(Clone, Copy)]
+struct Vertex {
     position: Vec3,
     ng: Vec3,
     material: u32,
     wo: Vec3,
-    target: Vec3,
 }
 
-/// Merges along random walks from the camera: each non-delta vertex with a BSDF-sampled
-/// continuation that hits something gives one, its target a uniform point of the disc of the
-/// merge radius in the tangent plane of that hit.
-fn merges(scene: &Scene, radius: f32) -> Vec<Merge> {
+impl Vertex {
+    fn bsdf<'s>(&self, scene: &'s Scene) -> Option<Bsdf<'s>> {
+        let kind = &scene.material(self.material).kind;
+        Bsdf::new(kind, self.ng, self.wo, TransportMode::Importance)
+    }
+}
+
+/// Which side gathers: one origin and many targets, or one target and many origins.
+#[derive(Clone, Copy, PartialEq)]
+enum Side {
+    Camera,
+    Light,
+}
+
+impl Side {
+    fn name(self) -> &'static str {
+        match self {
+            Side::Camera => "upg-camera",
+            Side::Light => "upg",
+        }
+    }
+}
+
+/// The merges around one eye vertex: merge `i` traces from `origins[i]` towards `targets[i]`.
+struct Gather {
+    origins: Vec<Vertex>,
+    targets: Vec<Vec3>,
+}
+
+/// A point where a walk vertex's BSDF-sampled ray lands, with its geometric normal.
+struct Landing {
+    from: Vertex,
+    position: Vec3,
+    ng: Vec3,
+}
+
+/// Pairs (walk vertex, landing point) along random walks from the camera.
+fn landings(scene: &Scene, count: usize, rng: &mut Rng) -> Vec<Landing> {
     let camera = Camera::new(scene.camera(None).expect("camera"), 256, 256);
-    let mut rng = Rng::for_sample(1, 0, 0, Stream::Eye);
-    let mut merges = Vec::with_capacity(MERGES);
-    while merges.len() < MERGES {
+    let mut out = Vec::with_capacity(count);
+    while out.len() < count {
         let (x, y) = (rng.next_f32() * 256.0, rng.next_f32() * 256.0);
         let mut ray = camera.generate_ray(x, y);
         let Some(mut hit) = scene.intersect(&ray) else {
             continue;
         };
         for _ in 0..WALK_LENGTH {
-            let wo = -ray.dir.normalize();
-            let kind = &scene.material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(kind, hit.ng, wo, TransportMode::Importance) else {
+            let from = Vertex {
+                position: hit.position,
+                ng: hit.ng,
+                material: hit.material,
+                wo: -ray.dir.normalize(),
+            };
+            let Some(bsdf) = from.bsdf(scene) else {
                 break;
             };
-            let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
-            let Some(sample) = bsdf.sample(u) else {
+            let Some(sample) = bsdf.sample([rng.next_f32(), rng.next_f32(), rng.next_f32()]) else {
                 break;
             };
             ray = Ray::spawn(hit.position, hit.ng, sample.wi);
             let Some(next) = scene.intersect(&ray) else {
                 break;
             };
-            if !bsdf.is_delta() && merges.len() < MERGES {
-                let frame = Frame::from_z(next.ng);
-                let d = concentric_disk(rng.next_2d()) * radius;
-                merges.push(Merge {
-                    position: hit.position,
-                    ng: hit.ng,
-                    material: hit.material,
-                    wo,
-                    target: next.position + frame.x * d.x + frame.y * d.y,
+            if !bsdf.is_delta() && out.len() < count {
+                out.push(Landing {
+                    from,
+                    position: next.position,
+                    ng: next.ng,
                 });
             }
             hit = next;
         }
     }
-    merges
+    out
+}
+
+/// A non-delta surface point that sees `x`: where a cosine-distributed ray from `x` (on the
+/// side facing `toward`) lands, with a random incident direction.
+fn seen_from(scene: &Scene, x: &Landing, toward: Vec3, rng: &mut Rng) -> Option<Vertex> {
+    let n = if x.ng.dot(toward - x.position) >= 0.0 {
+        x.ng
+    } else {
+        -x.ng
+    };
+    let ray = Ray::spawn(
+        x.position,
+        n,
+        Frame::from_z(n).to_world(cosine_hemisphere(rng.next_2d())),
+    );
+    let hit = scene.intersect(&ray)?;
+    let facing = if hit.ng.dot(ray.dir) < 0.0 {
+        hit.ng
+    } else {
+        -hit.ng
+    };
+    let vertex = Vertex {
+        position: hit.position,
+        ng: hit.ng,
+        material: hit.material,
+        wo: Frame::from_z(facing).to_world(cosine_hemisphere(rng.next_2d())),
+    };
+    vertex.bsdf(scene).filter(|b| !b.is_delta()).map(|_| vertex)
+}
+
+fn gathers(scene: &Scene, side: Side, size: usize, radius: f32) -> Vec<Gather> {
+    let mut rng = Rng::for_sample(1, size as u64, side as u64, Stream::Eye);
+    landings(scene, MERGES / size, &mut rng)
+        .into_iter()
+        .map(|landing| {
+            let frame = Frame::from_z(landing.ng);
+            match side {
+                Side::Camera => Gather {
+                    origins: vec![landing.from; size],
+                    targets: (0..size)
+                        .map(|_| {
+                            let d = concentric_disk(rng.next_2d()) * radius;
+                            landing.position + frame.x * d.x + frame.y * d.y
+                        })
+                        .collect(),
+                },
+                Side::Light => {
+                    let mut origins = vec![landing.from];
+                    while origins.len() < size {
+                        origins.extend(seen_from(scene, &landing, landing.from.position, &mut rng));
+                    }
+                    Gather {
+                        origins,
+                        targets: vec![landing.position; size],
+                    }
+                }
+            }
+        })
+        .collect()
 }
 
 #[derive(Default)]
 struct Totals {
+    merges: u64,
     trials: u64,
     rays: u64,
     capped: u64,
 }
 
-/// Estimates 1/p_acc for every merge once. Each merge has its own random stream, as a pixel has
-/// in rendering: packets draw numbers past the first success, which must not shift the next
-/// merge's trials.
-fn run(scene: &Scene, merges: &[Merge], radius: f32, estimator: &Estimator, pass: u64) -> Totals {
+/// Estimates 1/p_acc for every merge once, a gather at a time: the bounds (one BSDF per
+/// distinct origin, as rendering has), then the estimates. Each merge has its own random
+/// stream, as in rendering, so both widths count the same trials.
+fn run<T: TentativeTracer>(
+    scene: &Scene,
+    tracer: &T,
+    gathers: &[Gather],
+    radius: f32,
+    estimator: &Estimator,
+    pass: u64,
+) -> Totals {
     let mut totals = Totals::default();
-    for (index, m) in merges.iter().enumerate() {
-        let mut rng = Rng::for_sample(3, pass, index as u64, Stream::Tentative);
-        let kind = &scene.material(m.material).kind;
-        let Some(bsdf) = Bsdf::new(kind, m.ng, m.wo, TransportMode::Importance) else {
-            continue;
-        };
-        let Ok(bound) = AngularBound::new(m.position, m.ng, &bsdf, m.target, radius) else {
-            continue;
-        };
-        let e = estimator.estimate(scene, &bound, &mut rng);
-        black_box(e.inv_p_acc());
-        totals.trials += e.trials as u64;
-        totals.rays += e.rays as u64;
-        totals.capped += e.capped() as u64;
+    let mut index = 0;
+    let mut bounds = Vec::new();
+    let mut rngs = Vec::new();
+    for g in gathers {
+        bounds.clear();
+        rngs.clear();
+        let shared = (g.origins.len() > 1 && g.origins[0].position == g.origins[1].position)
+            .then(|| g.origins[0].bsdf(scene))
+            .flatten();
+        for (origin, &target) in g.origins.iter().zip(&g.targets) {
+            let own;
+            let bsdf = match &shared {
+                Some(bsdf) => bsdf,
+                None => match origin.bsdf(scene) {
+                    Some(b) => {
+                        own = b;
+                        &own
+                    }
+                    None => continue,
+                },
+            };
+            if let Ok(bound) = AngularBound::new(origin.position, origin.ng, bsdf, target, radius) {
+                index += 1;
+                bounds.push(bound);
+                rngs.push(Rng::for_sample(3, pass, index, Stream::Tentative));
+            }
+        }
+        estimator.estimate_all(tracer, &bounds, &mut rngs, |_, e| {
+            black_box(e.inv_p_acc());
+            totals.merges += 1;
+            totals.trials += e.trials as u64;
+            totals.rays += e.rays as u64;
+            totals.capped += e.capped() as u64;
+        });
     }
     totals
 }
@@ -113,28 +242,70 @@ fn estimator(packet: PacketWidth) -> Estimator {
     }
 }
 
-fn width_name(packet: PacketWidth) -> &'static str {
-    match packet {
-        PacketWidth::One => "packet 1",
-        PacketWidth::Eight => "packet 8",
+/// The scene as a tracer that also keeps every packet it traces, to replay the tracing alone.
+struct Recording<'a> {
+    scene: &'a Scene,
+    packets: RefCell<Vec<([Ray; PACKET], u8)>>,
+}
+
+impl TentativeTracer for Recording<'_> {
+    fn closest(&self, ray: &Ray) -> Option<f32> {
+        self.scene.closest(ray)
+    }
+
+    fn closest8(&self, rays: &[Ray; PACKET], active: u8) -> [Option<f32>; PACKET] {
+        self.packets.borrow_mut().push((*rays, active));
+        self.scene.closest8(rays, active)
     }
 }
 
-/// One row of the final table: a width measured on a scene.
+/// Nanoseconds per ray of the recorded packets' rays traced one by one and as the packets.
+fn tracing_alone(scene: &Scene, packets: &[([Ray; PACKET], u8)]) -> (f64, f64) {
+    let rays: u32 = packets.iter().map(|(_, a)| a.count_ones()).sum();
+    let mut best = [f64::INFINITY; 2];
+    for _ in 0..5 {
+        let start = Instant::now();
+        for (packet, active) in packets {
+            for (i, ray) in packet.iter().enumerate() {
+                if active & (1 << i) != 0 {
+                    black_box(scene.closest(ray));
+                }
+            }
+        }
+        best[0] = best[0].min(start.elapsed().as_secs_f64());
+        let start = Instant::now();
+        for (packet, active) in packets {
+            black_box(scene.closest8(packet, *active));
+        }
+        best[1] = best[1].min(start.elapsed().as_secs_f64());
+    }
+    let [one, eight] = best.map(|s| s * 1e9 / rays as f64);
+    (one, eight)
+}
+
+/// One row of the final table: both widths on one kind and size of gather.
 struct Row {
     scene: &'static str,
-    packet: PacketWidth,
-    merges_per_s: f64,
-    rays_per_s: f64,
+    side: Side,
+    size: usize,
+    merges_per_s: [f64; 2],
     trials_per_merge: f64,
-    rays_per_merge: f64,
+    rays_per_merge: [f64; 2],
     capped: u64,
+    /// ns per ray of the packets' rays traced alone, one by one and as packets.
+    tracing: (f64, f64),
 }
 
 /// Several passes per width, alternating; pass `p` draws the same random numbers at both
 /// widths, so both count the same trials and only the tracing differs.
-fn table_rows(name: &'static str, scene: &Scene, merges: &[Merge], radius: f32) -> Vec<Row> {
-    const PASSES: u64 = 8;
+fn table_row(
+    name: &'static str,
+    scene: &Scene,
+    side: Side,
+    size: usize,
+    gathers: &[Gather],
+    radius: f32,
+) -> Row {
     let widths = [PacketWidth::One, PacketWidth::Eight];
     let mut time = [Duration::ZERO; 2];
     let mut totals = [Totals::default(), Totals::default()];
@@ -143,8 +314,9 @@ fn table_rows(name: &'static str, scene: &Scene, merges: &[Merge], radius: f32) 
             // Alternate which width goes first, so load from other processes weighs on both.
             let i = (k + pass as usize) % widths.len();
             let start = Instant::now();
-            let t = run(scene, merges, radius, &estimator(widths[i]), pass);
+            let t = run(scene, scene, gathers, radius, &estimator(widths[i]), pass);
             time[i] += start.elapsed();
+            totals[i].merges += t.merges;
             totals[i].trials += t.trials;
             totals[i].rays += t.rays;
             totals[i].capped += t.capped;
@@ -154,23 +326,23 @@ fn table_rows(name: &'static str, scene: &Scene, merges: &[Merge], radius: f32) 
         totals[0].trials, totals[1].trials,
         "same trials at both widths"
     );
-    let n = merges.len() as f64 * PASSES as f64;
-    widths
-        .iter()
-        .zip(time.iter().zip(&totals))
-        .map(|(&packet, (time, t))| {
-            let seconds = time.as_secs_f64();
-            Row {
-                scene: name,
-                packet,
-                merges_per_s: n / seconds,
-                rays_per_s: t.rays as f64 / seconds,
-                trials_per_merge: t.trials as f64 / n,
-                rays_per_merge: t.rays as f64 / n,
-                capped: t.capped,
-            }
-        })
-        .collect()
+    let recording = Recording {
+        scene,
+        packets: RefCell::new(Vec::new()),
+    };
+    let packet = estimator(PacketWidth::Eight);
+    run(scene, &recording, gathers, radius, &packet, 0);
+    let n = totals[0].merges as f64;
+    Row {
+        scene: name,
+        side,
+        size,
+        merges_per_s: [0, 1].map(|i| n / time[i].as_secs_f64()),
+        trials_per_merge: totals[0].trials as f64 / n,
+        rays_per_merge: [0, 1].map(|i| totals[i].rays as f64 / n),
+        capped: totals[0].capped,
+        tracing: tracing_alone(scene, &recording.packets.into_inner()),
+    }
 }
 
 fn bench_scene(c: &mut Criterion, name: &'static str, path: &Path, rows: &mut Vec<Row>) {
@@ -191,24 +363,33 @@ fn bench_scene(c: &mut Criterion, name: &'static str, path: &Path, rows: &mut Ve
         }
     };
     let radius = scene.default_radius();
-    let merges = merges(&scene, radius);
-    let mut group = c.benchmark_group(format!("upg-acceptance/{name}"));
-    group.throughput(Throughput::Elements(merges.len() as u64));
-    group
-        .sample_size(10)
-        .measurement_time(Duration::from_secs(5));
-    for packet in [PacketWidth::One, PacketWidth::Eight] {
-        let estimator = estimator(packet);
-        let mut pass = 1000;
-        group.bench_function(width_name(packet), |b| {
-            b.iter(|| {
-                pass += 1;
-                run(&scene, &merges, radius, &estimator, pass)
-            })
-        });
+    for side in [Side::Camera, Side::Light] {
+        for size in GATHER_SIZES {
+            let gathers = gathers(&scene, side, size, radius);
+            if size == 4 {
+                let mut group = c.benchmark_group(format!("upg-acceptance/{name}/{}", side.name()));
+                group.throughput(Throughput::Elements(MERGES as u64));
+                group
+                    .sample_size(10)
+                    .measurement_time(Duration::from_secs(3));
+                for (label, packet) in [
+                    ("packet 1", PacketWidth::One),
+                    ("packet 8", PacketWidth::Eight),
+                ] {
+                    let estimator = estimator(packet);
+                    let mut pass = 1000;
+                    group.bench_function(format!("{label}, 4 merges per gather"), |b| {
+                        b.iter(|| {
+                            pass += 1;
+                            run(&scene, &scene, &gathers, radius, &estimator, pass)
+                        })
+                    });
+                }
+                group.finish();
+            }
+            rows.push(table_row(name, &scene, side, size, &gathers, radius));
+        }
     }
-    group.finish();
-    rows.extend(table_rows(name, &scene, &merges, radius));
 }
 
 fn benches(c: &mut Criterion) {
@@ -227,28 +408,42 @@ fn benches(c: &mut Criterion) {
         &mut rows,
     );
     println!(
-        "\nUPG tentative rays ({} backend, {MERGES} merges per pass, alternating passes)",
+        "\nUPG tentative rays ({} backend, {MERGES} merges per pass, {PASSES} alternating passes per width)",
         AccelKind::default_kind().name()
     );
     println!(
-        "{:16} {:9} {:>12} {:>12} {:>8} {:>8} {:>7} {:>9}",
-        "scene", "width", "merges/s", "rays/s", "trials", "rays", "capped", "speed-up"
+        "{:15} {:10} {:>3} {:>10} {:>10} {:>7} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>6}",
+        "scene",
+        "gathers",
+        "K",
+        "merges/s 1",
+        "merges/s 8",
+        "8 / 1",
+        "trials",
+        "rays 1",
+        "rays 8",
+        "capped",
+        "ns/ray 1",
+        "ns/ray 8",
+        "8 / 1"
     );
-    for pair in rows.chunks(2) {
-        let single = pair[0].merges_per_s;
-        for row in pair {
-            println!(
-                "{:16} {:9} {:>12.0} {:>12.0} {:>8.2} {:>8.2} {:>7} {:>9.2}",
-                row.scene,
-                width_name(row.packet),
-                row.merges_per_s,
-                row.rays_per_s,
-                row.trials_per_merge,
-                row.rays_per_merge,
-                row.capped,
-                row.merges_per_s / single
-            );
-        }
+    for r in &rows {
+        println!(
+            "{:15} {:10} {:>3} {:>10.0} {:>10.0} {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>6} {:>8.1} {:>8.1} {:>6.2}",
+            r.scene,
+            r.side.name(),
+            r.size,
+            r.merges_per_s[0],
+            r.merges_per_s[1],
+            r.merges_per_s[1] / r.merges_per_s[0],
+            r.trials_per_merge,
+            r.rays_per_merge[0],
+            r.rays_per_merge[1],
+            r.capped,
+            r.tracing.0,
+            r.tracing.1,
+            r.tracing.0 / r.tracing.1
+        );
     }
 }
 

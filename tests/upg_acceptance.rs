@@ -465,6 +465,69 @@ fn packets_and_single_rays_give_the_same_estimates() {
     }
 }
 
+/// Packets over several merges at once (lanes filled from all of them, as a gather does) give
+/// each merge the estimate it gets alone; an unreachable merge in the batch is reported as such.
+#[test]
+fn packets_over_many_merges_give_each_its_own_estimate() {
+    let lambert = lambert();
+    let lambert = bsdf(&lambert, 30.0);
+    let unreachable = AngularBound::new(
+        Vec3::ZERO,
+        Vec3::Z,
+        &lambert,
+        Vec3::new(0.3, 0.0, -1.0),
+        RADIUS as f32,
+    )
+    .expect("lambert");
+    assert_eq!(unreachable.p_bound(), 0.0);
+    for (index, c) in configs().iter().enumerate() {
+        let s = setup(c);
+        let b = bsdf(&c.kind, c.wo_deg);
+        let tracer = planes(c, &s);
+        let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
+            .expect("non-delta BSDF");
+        for size in [2, 5, 19] {
+            let bounds: Vec<_> = (0..size)
+                .map(|i| if i == 1 { &unreachable } else { &bound }.clone())
+                .collect();
+            for max_trials in [1_000_000, 13] {
+                let single = Estimator {
+                    packet: PacketWidth::One,
+                    max_trials,
+                };
+                let eight = Estimator {
+                    packet: PacketWidth::Eight,
+                    ..single
+                };
+                let rngs = |seed: u64| -> Vec<Rng> {
+                    (0..size)
+                        .map(|i| Rng::for_sample(seed, index as u64, i as u64, Stream::Tentative))
+                        .collect()
+                };
+                for seed in 0..20 {
+                    let mut alone = rngs(seed);
+                    let expected: Vec<_> = bounds
+                        .iter()
+                        .zip(&mut alone)
+                        .map(|(bound, rng)| single.estimate(&tracer, bound, rng))
+                        .collect();
+                    let mut got = vec![None; size];
+                    eight.estimate_all(&tracer, &bounds, &mut rngs(seed), |i, e| {
+                        assert!(got[i].replace(e).is_none(), "merge {i} estimated twice");
+                    });
+                    for (i, (e, g)) in expected.iter().zip(&got).enumerate() {
+                        let g = g.unwrap_or_else(|| panic!("{}: merge {i} not estimated", c.name));
+                        assert_eq!(e.outcome, g.outcome, "{}, seed {seed}, merge {i}", c.name);
+                        assert_eq!(e.trials, g.trials, "{}, seed {seed}, merge {i}", c.name);
+                        assert!(e.rays <= g.rays, "{}, seed {seed}, merge {i}", c.name);
+                    }
+                    assert_eq!(got[1].map(|e| e.outcome), Some(Outcome::Unreachable));
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn whole_lobe_fallback_is_the_bsdf_sampling() {
     let kinds = [lambert(), phong(0.0, 0.8, 20.0), phong(0.3, 0.5, 100.0)];

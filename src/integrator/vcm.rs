@@ -21,7 +21,9 @@
 
 use super::connection::{Connection, LightSample};
 use super::mis::{Power, VcmVertex, VcmWeights, VmHere};
-use super::upg::acceptance::{AngularBound, Estimator, Outcome, PacketWidth, StoredVerticesOnly};
+use super::upg::acceptance::{
+    AngularBound, Estimator, Outcome, PacketWidth, StoredVerticesOnly, TentativeTracer,
+};
 use super::{Integrator, IterationStats, RenderContext, Technique, UpgCounters};
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
@@ -570,19 +572,18 @@ impl<'a> VertexCm<'a> {
     /// a non-delta surface vertex, and for each connects Q to the eye vertex explicitly (000
     /// eq. 2.67), the tentative rays from Q estimating 1/p_acc (000 eq. 2.65).
     #[allow(clippy::too_many_arguments)]
-    fn merge_upg_light(
-        &self,
+    fn merge_upg_light<'s>(
+        &'s self,
         w: &VcmWeights,
         state: &SubPath,
         bsdf: &Bsdf,
         hit: &SurfaceHit,
         grid: &HashGrid,
         vertices: &[LightVertex],
-        tentative: &mut TentativeStream,
+        tentative: &mut Tentative<'s>,
         stats: &mut IterationStats,
     ) -> Rgb {
         let max_length = self.ctx.max_path_length();
-        let mut sum = Rgb::BLACK;
         grid.query(hit.position, |i, _| {
             let photon = &vertices[i];
             if !photon.after_surface {
@@ -603,15 +604,8 @@ impl<'a> VertexCm<'a> {
             ) else {
                 return;
             };
-            let Some(inv_p_acc) = self.inverse_acceptance(
-                &q_bsdf,
-                q.position,
-                q.ng,
-                hit.position,
-                w,
-                tentative,
-                stats,
-            ) else {
+            let Ok(bound) = AngularBound::new(q.position, q.ng, &q_bsdf, hit.position, w.radius)
+            else {
                 return;
             };
             // The light sub-path's quantities as they would be at the eye vertex.
@@ -625,27 +619,26 @@ impl<'a> VertexCm<'a> {
                 w.eta(light.d_vcm),
             );
             let roulette = self.roulette_probability(&q_bsdf, q.path_length);
-            sum += q.throughput * link.value * (weight * inv_p_acc / roulette);
+            tentative.push(bound, q.throughput * link.value * (weight / roulette));
         });
-        sum
+        self.estimate_merges(tentative, stats)
     }
 
     /// `upg-camera`: gathers the light vertices within r of the eye vertex the eye sub-path just
     /// reached, and connects each to the previous eye vertex `prev` explicitly, the tentative
     /// rays from `prev` estimating 1/p_acc (000 sec. 2.4.3, UPG*).
     #[allow(clippy::too_many_arguments)]
-    fn merge_upg_camera(
-        &self,
+    fn merge_upg_camera<'s>(
+        &'s self,
         w: &VcmWeights,
-        prev: &EyeVertex,
+        prev: &EyeVertex<'s>,
         position: Vec3,
         grid: &HashGrid,
         vertices: &[LightVertex],
-        tentative: &mut TentativeStream,
+        tentative: &mut Tentative<'s>,
         stats: &mut IterationStats,
     ) -> Rgb {
         let max_length = self.ctx.max_path_length();
-        let mut sum = Rgb::BLACK;
         grid.query(position, |i, _| {
             let photon = &vertices[i];
             if photon.path_length + 1 + prev.path_length > max_length {
@@ -666,14 +659,12 @@ impl<'a> VertexCm<'a> {
             ) else {
                 return;
             };
-            let Some(inv_p_acc) = self.inverse_acceptance(
-                &prev.bsdf,
+            let Ok(bound) = AngularBound::new(
                 prev.hit.position,
                 prev.hit.ng,
+                &prev.bsdf,
                 photon.position,
-                w,
-                tentative,
-                stats,
+                w.radius,
             ) else {
                 return;
             };
@@ -690,10 +681,12 @@ impl<'a> VertexCm<'a> {
                 w.eta(eye.d_vcm),
             );
             let roulette = self.roulette_probability(&prev.bsdf, prev.path_length);
-            sum +=
-                prev.throughput * photon.throughput * link.value * (weight * inv_p_acc / roulette);
+            tentative.push(
+                bound,
+                prev.throughput * photon.throughput * link.value * (weight / roulette),
+            );
         });
-        sum
+        self.estimate_merges(tentative, stats)
     }
 
     fn bsdf_at(&self, material: u32, ng: Vec3, wo: Vec3, mode: TransportMode) -> Option<Bsdf<'_>> {
@@ -728,41 +721,17 @@ impl<'a> VertexCm<'a> {
         })
     }
 
-    /// 1/p_acc for tentative rays from `origin` (BSDF `bsdf`) to within r of `target`; `None`
-    /// for a capped estimate (the merge is dropped and counted) or an unreachable target.
-    #[allow(clippy::too_many_arguments)]
-    fn inverse_acceptance(
-        &self,
-        bsdf: &Bsdf,
-        origin: Vec3,
-        ng: Vec3,
-        target: Vec3,
-        w: &VcmWeights,
-        tentative: &mut TentativeStream,
-        stats: &mut IterationStats,
-    ) -> Option<f32> {
-        let bound = AngularBound::new(origin, ng, bsdf, target, w.radius).ok()?;
-        let mut rng = tentative.next_rng();
+    /// Estimates 1/p_acc for the merges of one gather, together so that packets can take lanes
+    /// from all of them, and returns the sum of their contributions. A capped estimate drops its
+    /// merge (and is counted), as does an unreachable target.
+    fn estimate_merges(&self, tentative: &mut Tentative, stats: &mut IterationStats) -> Rgb {
         // `upg` gathers light vertices, which lie on non-delta surfaces only; `upg-camera`
         // gathers at wherever the eye sub-path lands.
-        let estimate = match self.modes.merge {
+        match self.modes.merge {
             Merge::UpgLight => {
-                let tracer = StoredVerticesOnly(self.scene());
-                self.estimator.estimate(&tracer, &bound, &mut rng)
+                tentative.estimate(&self.estimator, &StoredVerticesOnly(self.scene()), stats)
             }
-            _ => self.estimator.estimate(self.scene(), &bound, &mut rng),
-        };
-        stats.upg.merges += 1;
-        stats.upg.trials += estimate.trials as u64;
-        stats.upg.tentative_rays += estimate.rays as u64;
-        stats.rays += estimate.rays as u64;
-        match estimate.outcome {
-            Outcome::Estimate(inv) => Some(inv),
-            Outcome::Capped => {
-                stats.upg.capped += 1;
-                None
-            }
-            Outcome::Unreachable => None,
+            _ => tentative.estimate(&self.estimator, self.scene(), stats),
         }
     }
 
@@ -781,7 +750,7 @@ impl<'a> VertexCm<'a> {
         let camera = &self.ctx.camera;
         let seed = self.ctx.options.seed;
         let mut rng = Rng::for_sample(seed, iteration, pixel as u64, Stream::Eye);
-        let mut tentative = TentativeStream::new(seed, iteration, pixel);
+        let mut tentative = Tentative::new(seed, iteration, pixel);
         let width = camera.width as usize;
         let [jx, jy] = rng.next_2d();
         let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
@@ -902,33 +871,73 @@ fn carry(w: &VcmWeights, c: &Connection, at_from: VcmVertex, merge_at_from: VmHe
     v
 }
 
-/// The random numbers of one eye sub-path's tentative rays: one stream per merge, so an
-/// estimate does not depend on how many numbers the packets before it drew.
-struct TentativeStream {
+/// The UPG merges of one eye sub-path awaiting their 1/p_acc: each merge's bound, its own
+/// random stream (so an estimate does not depend on how many numbers the packets before it
+/// drew) and its contribution without the 1/p_acc factor. Reused from gather to gather.
+struct Tentative<'s> {
     seed: u64,
     iteration: u64,
     base: u64,
     merges: u64,
+    bounds: Vec<AngularBound<'s>>,
+    rngs: Vec<Rng>,
+    values: Vec<Rgb>,
 }
 
-impl TentativeStream {
+impl<'s> Tentative<'s> {
     fn new(seed: u64, iteration: u64, pixel: usize) -> Self {
-        TentativeStream {
+        Tentative {
             seed,
             iteration,
             base: (pixel as u64) << 24,
             merges: 0,
+            bounds: Vec::new(),
+            rngs: Vec::new(),
+            values: Vec::new(),
         }
     }
 
-    fn next_rng(&mut self) -> Rng {
+    fn push(&mut self, bound: AngularBound<'s>, value: Rgb) {
         self.merges += 1;
-        Rng::for_sample(
+        self.rngs.push(Rng::for_sample(
             self.seed,
             self.iteration,
             self.base + self.merges,
             Stream::Tentative,
-        )
+        ));
+        self.bounds.push(bound);
+        self.values.push(value);
+    }
+
+    /// Estimates every pending merge, empties the list and returns the merges' sum.
+    fn estimate<T: TentativeTracer + ?Sized>(
+        &mut self,
+        estimator: &Estimator,
+        tracer: &T,
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let values = &mut self.values;
+        estimator.estimate_all(tracer, &self.bounds, &mut self.rngs, |i, estimate| {
+            stats.upg.merges += 1;
+            stats.upg.trials += estimate.trials as u64;
+            stats.upg.tentative_rays += estimate.rays as u64;
+            stats.rays += estimate.rays as u64;
+            values[i] = match estimate.outcome {
+                Outcome::Estimate(inv_p_acc) => values[i] * inv_p_acc,
+                Outcome::Capped => {
+                    stats.upg.capped += 1;
+                    Rgb::BLACK
+                }
+                Outcome::Unreachable => Rgb::BLACK,
+            };
+        });
+        // Summed in gathering order: packets finish merges in another order than single rays,
+        // and the image must not depend on it.
+        let sum = values.iter().fold(Rgb::BLACK, |sum, &v| sum + v);
+        self.bounds.clear();
+        self.rngs.clear();
+        self.values.clear();
+        sum
     }
 }
 

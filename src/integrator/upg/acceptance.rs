@@ -22,7 +22,7 @@ use crate::bsdf::{Bsdf, Lobe, LobeShape};
 use crate::sampling::{cosine_hemisphere, power_cosine, Rng};
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
-use std::f64::consts::{FRAC_PI_2, PI};
+use std::f64::consts::PI;
 use thiserror::Error;
 
 /// The trial cap the command line uses unless told otherwise.
@@ -167,37 +167,54 @@ impl Component {
         }
         let t = to_target / d;
         let (tx, ty, tz) = (t.dot(x), t.dot(y), t.dot(z));
-        let sin_theta_d = (tx * tx + ty * ty).sqrt();
-        let theta_d = sin_theta_d.atan2(tz);
-        let gamma = (radius / d).asin();
-        // Both lobes live on the hemisphere around their axis.
-        let theta0 = theta_d - gamma;
-        let theta1 = (theta_d + gamma).min(FRAC_PI_2);
-        if theta0 >= FRAC_PI_2 {
+        // The cone's axis is at polar angle theta_d, its half-angle is gamma; the bound spans
+        // polar angles [theta_d - gamma, theta_d + gamma], clamped to the lobe's hemisphere.
+        // Their sines and cosines follow from the angle sums, with no inverse trigonometry.
+        let (cos_d, sin_d) = (tz, (tx * tx + ty * ty).sqrt());
+        let sin_gamma = radius / d;
+        let cos_gamma = (1.0 - sin_gamma * sin_gamma).sqrt();
+        let cos_lo = cos_d * cos_gamma + sin_d * sin_gamma;
+        if cos_lo <= 0.0 {
+            // theta_d - gamma >= 90 degrees: the cone lies below the lobe's hemisphere.
             return (whole, 0.0);
         }
-        let (theta0, phi0, phi_span) = if theta0 <= 0.0 {
+        let sin_lo = sin_d * cos_gamma - cos_d * sin_gamma;
+        let cos_hi = cos_d * cos_gamma - sin_d * sin_gamma;
+        let (cos1, sin1) = if cos_hi <= 0.0 {
+            (0.0, 1.0)
+        } else {
+            (cos_hi, sin_d * cos_gamma + cos_d * sin_gamma)
+        };
+        let (cos0, sin0, x, y, phi0, phi_span) = if sin_lo <= 0.0 {
             // The cone holds the axis: every azimuth.
-            (0.0, 0.0, 2.0 * PI)
+            (1.0, 0.0, x, y, 0.0, 2.0 * PI)
         } else {
             // Half-width of the azimuths of a cone of half-angle gamma whose axis is at polar
             // angle theta_d > gamma, seen from the lobe's axis. When the cone holds the
             // antipode too (sin(gamma) >= sin(theta_d)), its part in the lobe's hemisphere
-            // still lies within 90 degrees of phi_d, where the ratio is clamped.
-            let dphi = (gamma.sin() / sin_theta_d).min(1.0).asin();
-            (theta0, ty.atan2(tx) - dphi, 2.0 * dphi)
+            // still lies within 90 degrees of phi_d, where the ratio is clamped. The frame is
+            // turned so that phi_d is azimuth zero.
+            let dphi = (sin_gamma / sin_d).min(1.0).asin();
+            let x_d = (x * tx + y * ty) / sin_d;
+            (cos_lo, sin_lo, x_d, z.cross(x_d), -dphi, 2.0 * dphi)
         };
         let (polar, mass) = match lobe.shape {
             LobeShape::Cosine => {
-                // sin^2(t1) - sin^2(t0) without cancellation for narrow intervals.
-                let span = (theta1 + theta0).sin() * (theta1 - theta0).sin();
-                let lo = theta0.sin().powi(2);
-                (Polar::SinSquared { lo, span }, span)
+                // sin^2(theta1) - sin^2(theta0) as sin(theta1 + theta0) sin(theta1 - theta0),
+                // without cancellation for narrow intervals.
+                let span = (sin1 * cos0 + cos1 * sin0) * (sin1 * cos0 - cos1 * sin0);
+                (
+                    Polar::SinSquared {
+                        lo: sin0 * sin0,
+                        span,
+                    },
+                    span,
+                )
             }
             LobeShape::PowerCosine { exponent } => {
                 let n1 = exponent as f64 + 1.0;
-                let hi = theta0.cos().powf(n1);
-                let span = hi - theta1.cos().max(0.0).powf(n1);
+                let hi = cos0.powf(n1);
+                let span = hi - cos1.powf(n1);
                 let polar = Polar::PowerCosine {
                     hi,
                     span,
@@ -211,6 +228,8 @@ impl Component {
             return (whole, 1.0);
         }
         let bounded = Component {
+            x,
+            y,
             polar,
             phi0,
             phi_span,
@@ -239,9 +258,11 @@ impl Component {
                 (c, (1.0 - c * c).sqrt())
             }
         };
-        let phi = self.phi0 + u[1] as f64 * self.phi_span;
-        let w = self.x * (sin_theta * phi.cos())
-            + self.y * (sin_theta * phi.sin())
+        // The azimuth in f32: its rounding moves the direction by less than f32 can resolve.
+        let phi = (self.phi0 + u[1] as f64 * self.phi_span) as f32;
+        let (sin_phi, cos_phi) = phi.sin_cos();
+        let w = self.x * (sin_theta * cos_phi as f64)
+            + self.y * (sin_theta * sin_phi as f64)
             + self.z * cos_theta;
         w.as_vec3()
     }
@@ -428,8 +449,9 @@ pub struct Estimator {
 }
 
 impl Default for Estimator {
-    /// Single rays: a merge takes about 3 trials, so packets of 8 spend most lanes in vain
-    /// (README, "UPG tentative rays").
+    /// Single rays: Embree traces a packet's rays only 1.1 to 1.3 times faster than single
+    /// ones, and tracing is under half of the stage, so packets gain nothing measurable even
+    /// with their lanes filled (README, "UPG tentative rays").
     fn default() -> Self {
         Estimator {
             packet: PacketWidth::One,
@@ -440,32 +462,71 @@ impl Default for Estimator {
 
 impl Estimator {
     /// Counts trials in `bound` up to the first success. Packets and single rays return the same
-    /// estimate for the same `rng`; packets draw the numbers of up to 7 trials more.
+    /// estimate for the same `rng`; packets may draw the numbers of up to 7 trials more.
     pub fn estimate<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
         bound: &AngularBound,
         rng: &mut Rng,
     ) -> Estimate {
-        if bound.p_bound <= 0.0 {
-            return Estimate {
-                outcome: Outcome::Unreachable,
-                trials: 0,
-                rays: 0,
-            };
+        let mut estimate = None;
+        self.estimate_all(
+            tracer,
+            std::slice::from_ref(bound),
+            std::slice::from_mut(rng),
+            |_, e| estimate = Some(e),
+        );
+        estimate.expect("one estimate per bound")
+    }
+
+    /// Estimates of several merges, merge `i` drawing its trials in `bounds[i]` from `rngs[i]`;
+    /// `done(i, estimate)` receives each. Single rays finish one merge after another. Packets
+    /// fill their 8 lanes with the next trials of every merge still open, in turn, so a merge
+    /// needing 2 or 3 trials does not leave the other lanes idle; the trials of one merge keep
+    /// their order, so every estimate is the one single rays give.
+    pub fn estimate_all<T: TentativeTracer + ?Sized>(
+        &self,
+        tracer: &T,
+        bounds: &[AngularBound],
+        rngs: &mut [Rng],
+        mut done: impl FnMut(usize, Estimate),
+    ) {
+        assert_eq!(bounds.len(), rngs.len(), "one random stream per bound");
+        let mut reachable = Vec::with_capacity(bounds.len());
+        for (i, bound) in bounds.iter().enumerate() {
+            if bound.p_bound > 0.0 {
+                reachable.push(i);
+            } else {
+                done(
+                    i,
+                    Estimate {
+                        outcome: Outcome::Unreachable,
+                        trials: 0,
+                        rays: 0,
+                    },
+                );
+            }
         }
-        let (trials, rays) = match self.packet {
-            PacketWidth::One => self.single(tracer, bound, rng),
-            PacketWidth::Eight => self.packets(tracer, bound, rng),
-        };
-        let outcome = match trials {
-            Some(n) => Outcome::Estimate((n as f64 / bound.p_bound) as f32),
-            None => Outcome::Capped,
-        };
-        Estimate {
-            outcome,
-            trials: trials.unwrap_or(self.max_trials),
+        let finish = |bound: &AngularBound, first: Option<u32>, rays: u32| Estimate {
+            outcome: match first {
+                Some(n) => Outcome::Estimate((n as f64 / bound.p_bound) as f32),
+                None => Outcome::Capped,
+            },
+            trials: first.unwrap_or(self.max_trials),
             rays,
+        };
+        match self.packet {
+            PacketWidth::One => {
+                for i in reachable {
+                    let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i]);
+                    done(i, finish(&bounds[i], first, rays));
+                }
+            }
+            PacketWidth::Eight => {
+                self.packets(tracer, bounds, rngs, reachable, |i, first, rays| {
+                    done(i, finish(&bounds[i], first, rays))
+                })
+            }
         }
     }
 
@@ -488,36 +549,76 @@ impl Estimator {
         (None, rays)
     }
 
+    /// Packets of 8 lanes over the merges `open`; `done(i, first success, rays)` as each ends.
     fn packets<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
-        bound: &AngularBound,
-        rng: &mut Rng,
-    ) -> (Option<u32>, u32) {
-        let mut rays = 0;
-        let mut done = 0;
-        let mut packet = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
-        while done < self.max_trials {
-            let lanes = (self.max_trials - done).min(PACKET as u32) as usize;
-            let mut active = 0u8;
-            for (i, slot) in packet.iter_mut().enumerate().take(lanes) {
-                if let Some(ray) = bound.trial(rng) {
-                    *slot = ray;
-                    active |= 1 << i;
-                }
-            }
-            if active != 0 {
-                rays += active.count_ones();
-                let hits = tracer.closest8(&packet, active);
-                // The first success in trial order decides, as if traced one by one.
-                let first = (0..lanes)
-                    .find(|&i| active & (1 << i) != 0 && bound.accepts(&packet[i], hits[i]));
-                if let Some(i) = first {
-                    return (Some(done + i as u32 + 1), rays);
-                }
-            }
-            done += lanes as u32;
+        bounds: &[AngularBound],
+        rngs: &mut [Rng],
+        mut open: Vec<usize>,
+        mut done: impl FnMut(usize, Option<u32>, u32),
+    ) {
+        /// Trials drawn and rays traced so far, and the first success found.
+        #[derive(Clone, Copy, Default)]
+        struct Progress {
+            drawn: u32,
+            rays: u32,
+            first: Option<u32>,
         }
-        (None, rays)
+        let mut progress = vec![Progress::default(); bounds.len()];
+        let mut packet = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
+        // Which merge and which of its trials each lane holds.
+        let mut lanes = [(0usize, 0u32); PACKET];
+        let mut turn = 0;
+        while !open.is_empty() {
+            let mut active = 0u8;
+            let mut filled = 0;
+            // Sweep the open merges, one traced trial each per sweep, until the lanes are full
+            // or every open merge has drawn its cap.
+            while filled < PACKET {
+                let mut placed = false;
+                for k in 0..open.len() {
+                    if filled == PACKET {
+                        break;
+                    }
+                    let i = open[(turn + k) % open.len()];
+                    let p = &mut progress[i];
+                    while p.drawn < self.max_trials {
+                        p.drawn += 1;
+                        if let Some(ray) = bounds[i].trial(&mut rngs[i]) {
+                            packet[filled] = ray;
+                            lanes[filled] = (i, p.drawn);
+                            active |= 1 << filled;
+                            p.rays += 1;
+                            filled += 1;
+                            placed = true;
+                            break;
+                        }
+                    }
+                }
+                if !placed {
+                    break;
+                }
+            }
+            turn += 1;
+            if active != 0 {
+                let hits = tracer.closest8(&packet, active);
+                for (lane, &(i, n)) in lanes.iter().enumerate().take(filled) {
+                    let p = &mut progress[i];
+                    // A merge's lanes hold its trials in order: the first success decides.
+                    if p.first.is_none() && bounds[i].accepts(&packet[lane], hits[lane]) {
+                        p.first = Some(n);
+                    }
+                }
+            }
+            open.retain(|&i| {
+                let p = progress[i];
+                let ended = p.first.is_some() || p.drawn >= self.max_trials;
+                if ended {
+                    done(i, p.first, p.rays);
+                }
+                !ended
+            });
+        }
     }
 }
