@@ -159,6 +159,28 @@ fn bsdf(kind: &MaterialKind, wo_deg: f64) -> Bsdf<'_> {
     Bsdf::new(kind, Vec3::Z, wo, TransportMode::Importance).expect("wo off the surface")
 }
 
+/// The scene of configuration `c` and the bound of its merge.
+fn merge_of(c: &Config) -> (Planes, AngularBound<'_>) {
+    let s = setup(c);
+    let b = bsdf(&c.kind, c.wo_deg);
+    let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
+        .expect("non-delta BSDF");
+    (planes(c, &s), bound)
+}
+
+/// Single rays and packets of 8, both capped at `max_trials`.
+fn both_widths(max_trials: u32) -> (Estimator, Estimator) {
+    let single = Estimator {
+        packet: PacketWidth::One,
+        max_trials,
+    };
+    let eight = Estimator {
+        packet: PacketWidth::Eight,
+        ..single
+    };
+    (single, eight)
+}
+
 /// p_acc = integral over the visible disc of pdf_w(w) cos_disc / dist^2 dA (000 eq. 2.57), by
 /// composite Gauss-Legendre in (s, w) with u = r sin s, v = r cos s w, which keeps the
 /// integrand smooth up to the disc's rim and the shadow edge.
@@ -385,10 +407,7 @@ fn configs() -> Vec<Config> {
 #[test]
 fn mean_estimate_is_the_reciprocal_acceptance_probability() {
     const ESTIMATES: usize = 20_000;
-    let estimator = Estimator {
-        packet: PacketWidth::One,
-        max_trials: 1_000_000,
-    };
+    let (estimator, _) = both_widths(1_000_000);
     let mut failures = Vec::new();
     for (index, c) in configs().iter().enumerate() {
         let s = setup(c);
@@ -401,9 +420,7 @@ fn mean_estimate_is_the_reciprocal_acceptance_probability() {
             c.name
         );
         let expected = 1.0 / exact;
-        let tracer = planes(c, &s);
-        let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
-            .expect("non-delta BSDF");
+        let (tracer, bound) = merge_of(c);
         let mut rng = Rng::for_sample(11, index as u64, 0, Stream::Tentative);
         let (mut sum, mut sum2, mut trials) = (0.0f64, 0.0f64, 0u64);
         for _ in 0..ESTIMATES {
@@ -437,22 +454,11 @@ fn mean_estimate_is_the_reciprocal_acceptance_probability() {
 #[test]
 fn packets_and_single_rays_give_the_same_estimates() {
     for (index, c) in configs().iter().enumerate() {
-        let s = setup(c);
-        let b = bsdf(&c.kind, c.wo_deg);
-        let tracer = planes(c, &s);
-        let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
-            .expect("non-delta BSDF");
+        let (tracer, bound) = merge_of(c);
         // A small cap not a multiple of 8 exercises the last, partial packet.
         for max_trials in [1_000_000, 13] {
+            let (single, eight) = both_widths(max_trials);
             for seed in 0..200 {
-                let single = Estimator {
-                    packet: PacketWidth::One,
-                    max_trials,
-                };
-                let eight = Estimator {
-                    packet: PacketWidth::Eight,
-                    ..single
-                };
                 let mut a = Rng::for_sample(seed, index as u64, 1, Stream::Tentative);
                 let mut b = a.clone();
                 let one = single.estimate(&tracer, &bound, &mut a);
@@ -481,24 +487,13 @@ fn packets_over_many_merges_give_each_its_own_estimate() {
     .expect("lambert");
     assert_eq!(unreachable.p_bound(), 0.0);
     for (index, c) in configs().iter().enumerate() {
-        let s = setup(c);
-        let b = bsdf(&c.kind, c.wo_deg);
-        let tracer = planes(c, &s);
-        let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, s.target.as_vec3(), RADIUS as f32)
-            .expect("non-delta BSDF");
+        let (tracer, bound) = merge_of(c);
         for size in [2, 5, 19] {
             let bounds: Vec<_> = (0..size)
                 .map(|i| if i == 1 { &unreachable } else { &bound }.clone())
                 .collect();
             for max_trials in [1_000_000, 13] {
-                let single = Estimator {
-                    packet: PacketWidth::One,
-                    max_trials,
-                };
-                let eight = Estimator {
-                    packet: PacketWidth::Eight,
-                    ..single
-                };
+                let (single, eight) = both_widths(max_trials);
                 let rngs = |seed: u64| -> Vec<Rng> {
                     (0..size)
                         .map(|i| Rng::for_sample(seed, index as u64, i as u64, Stream::Tentative))
