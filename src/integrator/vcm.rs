@@ -723,7 +723,7 @@ impl<'a> VertexCm<'a> {
 
     /// Estimates 1/p_acc for the merges of one gather, together so that packets can take lanes
     /// from all of them, and returns the sum of their contributions. A capped estimate drops its
-    /// merge (and is counted), as does an unreachable target.
+    /// merge and is counted as capped; an unreachable target drops its merge too.
     fn estimate_merges(&self, tentative: &mut Tentative, stats: &mut IterationStats) -> Rgb {
         // `upg` gathers light vertices, which lie on non-delta surfaces only; `upg-camera`
         // gathers at wherever the eye sub-path lands.

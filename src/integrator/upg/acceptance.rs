@@ -200,9 +200,15 @@ impl Component {
         };
         let (polar, mass) = match lobe.shape {
             LobeShape::Cosine => {
-                // sin^2(theta1) - sin^2(theta0) as sin(theta1 + theta0) sin(theta1 - theta0),
-                // without cancellation for narrow intervals.
-                let span = (sin1 * cos0 + cos1 * sin0) * (sin1 * cos0 - cos1 * sin0);
+                // sin^2(theta1) - sin^2(theta0) = sin(theta1 + theta0) sin(theta1 - theta0); with
+                // neither end clamped the second factor is sin(2 gamma), which keeps its digits
+                // however narrow the cone.
+                let sin_difference = if cos_hi > 0.0 && sin_lo > 0.0 {
+                    2.0 * sin_gamma * cos_gamma
+                } else {
+                    sin1 * cos0 - cos1 * sin0
+                };
+                let span = (sin1 * cos0 + cos1 * sin0) * sin_difference;
                 (
                     Polar::SinSquared {
                         lo: sin0 * sin0,
