@@ -65,10 +65,12 @@ impl Side {
     }
 }
 
-/// The merges around one eye vertex: merge `i` traces from `origins[i]` towards `targets[i]`.
-struct Gather {
-    origins: Vec<Vertex>,
-    targets: Vec<Vec3>,
+/// The merges around one eye vertex.
+enum Gather {
+    /// `upg-camera`: from the previous eye vertex towards each light vertex found.
+    OneOrigin { origin: Vertex, targets: Vec<Vec3> },
+    /// `upg`: from each light vertex's predecessor towards the eye vertex.
+    OneTarget { origins: Vec<Vertex>, target: Vec3 },
 }
 
 /// A point where a walk vertex's BSDF-sampled ray lands, with its geometric normal.
@@ -153,8 +155,8 @@ fn gathers(scene: &Scene, side: Side, size: usize, radius: f32) -> Vec<Gather> {
         .map(|landing| {
             let frame = Frame::from_z(landing.ng);
             match side {
-                Side::Camera => Gather {
-                    origins: vec![landing.from; size],
+                Side::Camera => Gather::OneOrigin {
+                    origin: landing.from,
                     targets: (0..size)
                         .map(|_| {
                             let d = concentric_disk(rng.next_2d()) * radius;
@@ -167,9 +169,9 @@ fn gathers(scene: &Scene, side: Side, size: usize, radius: f32) -> Vec<Gather> {
                     while origins.len() < size {
                         origins.extend(seen_from(scene, &landing, landing.from.position, &mut rng));
                     }
-                    Gather {
+                    Gather::OneTarget {
                         origins,
-                        targets: vec![landing.position; size],
+                        target: landing.position,
                     }
                 }
             }
@@ -186,10 +188,10 @@ struct Totals {
 }
 
 /// Estimates 1/p_acc for every merge once, a gather at a time: the bounds (one BSDF per
-/// distinct origin, as rendering has), then the estimates. Each merge has its own random
+/// origin, as rendering has), then the estimates. Each merge has its own random
 /// stream, as in rendering, so both widths count the same trials.
-fn run<T: TentativeTracer>(
-    scene: &Scene,
+fn run<'s, T: TentativeTracer>(
+    scene: &'s Scene,
     tracer: &T,
     gathers: &[Gather],
     radius: f32,
@@ -203,25 +205,27 @@ fn run<T: TentativeTracer>(
     for g in gathers {
         bounds.clear();
         rngs.clear();
-        let shared = (g.origins.len() > 1 && g.origins[0].position == g.origins[1].position)
-            .then(|| g.origins[0].bsdf(scene))
-            .flatten();
-        for (origin, &target) in g.origins.iter().zip(&g.targets) {
-            let own;
-            let bsdf = match &shared {
-                Some(bsdf) => bsdf,
-                None => match origin.bsdf(scene) {
-                    Some(b) => {
-                        own = b;
-                        &own
-                    }
-                    None => continue,
-                },
-            };
+        let mut add = |origin: &Vertex, bsdf: &Bsdf<'s>, target: Vec3| {
             if let Ok(bound) = AngularBound::new(origin.position, origin.ng, bsdf, target, radius) {
                 index += 1;
                 bounds.push(bound);
                 rngs.push(Rng::for_sample(3, pass, index, Stream::Tentative));
+            }
+        };
+        match g {
+            Gather::OneOrigin { origin, targets } => {
+                if let Some(bsdf) = origin.bsdf(scene) {
+                    for &target in targets {
+                        add(origin, &bsdf, target);
+                    }
+                }
+            }
+            Gather::OneTarget { origins, target } => {
+                for origin in origins {
+                    if let Some(bsdf) = origin.bsdf(scene) {
+                        add(origin, &bsdf, *target);
+                    }
+                }
             }
         }
         estimator.estimate_all(tracer, &bounds, &mut rngs, |_, e| {
