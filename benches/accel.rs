@@ -278,25 +278,40 @@ impl Target<'_> {
     }
 }
 
-/// Million rays per second of each target on `rays`: the best of several rounds, each round
-/// running every target once, so a load spike on the machine hits all of them alike. Timed in
-/// thread CPU time, so time spent descheduled on a shared machine does not count.
-fn mrays<const N: usize>(
+/// Seconds each target takes for `rays`, round by round: each round runs every target once,
+/// starting with another one each time, so a load spike on the machine weighs on all of them.
+/// Timed in thread CPU time, so time spent descheduled on a shared machine does not count.
+fn round_times<const N: usize>(
     targets: &[Option<Target>; N],
     query: Query,
     rays: &[Ray],
-) -> [Option<f64>; N] {
-    let mut best = [f64::INFINITY; N];
-    for _ in 0..ROUNDS {
-        for (target, best) in targets.iter().zip(&mut best) {
-            if let Some(target) = target {
+) -> [Vec<f64>; N] {
+    let mut times: [Vec<f64>; N] = std::array::from_fn(|_| Vec::with_capacity(ROUNDS));
+    for round in 0..ROUNDS {
+        for k in 0..N {
+            let i = (round + k) % N;
+            if let Some(target) = &targets[i] {
                 let start = ThreadTime::now();
                 black_box(target.run(query, black_box(rays)));
-                *best = best.min(start.elapsed().as_secs_f64());
+                times[i].push(start.elapsed().as_secs_f64());
             }
         }
     }
-    best.map(|s| s.is_finite().then(|| rays.len() as f64 / s / 1e6))
+    times
+}
+
+/// Million rays per second in the best round.
+fn best_mrays(times: &[f64], rays: usize) -> Option<f64> {
+    let best = times.iter().copied().fold(f64::INFINITY, f64::min);
+    best.is_finite().then(|| rays as f64 / best / 1e6)
+}
+
+/// The median over rounds of `a`'s time over `b`'s in the same round: a ratio of neighbours
+/// in time, which a slow spell of the machine shifts far less than it shifts either time.
+fn paired_ratio(a: &[f64], b: &[f64]) -> Option<f64> {
+    let mut ratios: Vec<f64> = a.iter().zip(b).map(|(a, b)| a / b).collect();
+    ratios.sort_by(f64::total_cmp);
+    (!ratios.is_empty()).then(|| ratios[ratios.len() / 2])
 }
 
 fn benches(c: &mut Criterion) {
@@ -329,7 +344,10 @@ fn benches(c: &mut Criterion) {
 
     // The summary table, measured in one run so its ratios compare like with like.
     println!();
-    println!("Mrays/s, 1 thread, {RAYS} incoherent rays per workload (best of {ROUNDS} rounds, thread CPU time)");
+    println!(
+        "Mrays/s, 1 thread, {RAYS} incoherent rays per workload (best of {ROUNDS} rounds, thread CPU \
+         time; ratios: median over rounds of the ratio within a round)"
+    );
     println!(
         "{:<12} {:<10} {:>8} {:>8} {:>11} {:>10} {:>9}",
         "scene", "query", "embree", "bvh", "embree/bvh", "embree-sys", "wrapper"
@@ -348,25 +366,22 @@ fn benches(c: &mut Criterion) {
                 backend(AccelKind::Bvh),
                 s.raw.as_ref().map(Target::Raw),
             ];
-            let [embree, bvh, raw] = mrays(&targets, query, rays);
-            let cell = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.2}"));
-            let ratio = match (embree, bvh) {
-                (Some(e), Some(b)) => format!("{:.2}x", e / b),
-                _ => "-".into(),
+            let [embree, bvh, raw] = round_times(&targets, query, rays);
+            let cell = |t: &[f64]| {
+                best_mrays(t, rays.len()).map_or("-".to_string(), |v| format!("{v:.2}"))
             };
+            let ratio = paired_ratio(&bvh, &embree).map_or("-".into(), |r| format!("{r:.2}x"));
             // The wrapper's cost: how much longer a ray takes through `Accel` than raw.
-            let wrapper = match (embree, raw) {
-                (Some(e), Some(r)) => format!("{:+.1}%", (r / e - 1.0) * 100.0),
-                _ => "-".into(),
-            };
+            let wrapper = paired_ratio(&embree, &raw)
+                .map_or("-".into(), |r| format!("{:+.1}%", (r - 1.0) * 100.0));
             println!(
                 "{:<12} {:<10} {:>8} {:>8} {:>11} {:>10} {:>9}",
                 s.name,
                 query.name(),
-                cell(embree),
-                cell(bvh),
+                cell(&embree),
+                cell(&bvh),
                 ratio,
-                cell(raw),
+                cell(&raw),
                 wrapper
             );
         }
