@@ -9,37 +9,31 @@ use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
 use vmerge::integrator::{self, RenderContext, Technique};
 use vmerge::render::RenderOptions;
-use vmerge::scene::{self, Camera, LoadOptions};
+use vmerge::scene::Camera;
+
+mod common;
+use common::load_scene;
 
 const SIZE: u32 = 128;
 
 fn bench_scene(c: &mut Criterion, name: &str, path: &Path) {
-    if !path.exists() {
-        eprintln!("skipping {name}: {} is absent", path.display());
-        return;
+    let mut kinds = vec![AccelKind::Bvh];
+    if cfg!(feature = "embree") {
+        kinds.insert(0, AccelKind::Embree);
     }
+    let Some(scenes) = kinds
+        .into_iter()
+        .map(|accel| load_scene(name, path, accel).map(|scene| (accel, scene)))
+        .collect::<Option<Vec<_>>>()
+    else {
+        return;
+    };
     let mut group = c.benchmark_group(format!("pt/{name}"));
     group.throughput(Throughput::Elements((SIZE * SIZE) as u64));
     group
         .sample_size(10)
         .measurement_time(Duration::from_secs(10));
-    let mut kinds = vec![AccelKind::Bvh];
-    if cfg!(feature = "embree") {
-        kinds.insert(0, AccelKind::Embree);
-    }
-    for accel in kinds {
-        let options = LoadOptions {
-            accel,
-            lenient: true,
-        };
-        // The conference room's mesh lives outside the project and may be absent.
-        let scene = match scene::load(path, &options) {
-            Ok(scene) => scene,
-            Err(e) => {
-                eprintln!("skipping {name}: {e}");
-                return;
-            }
-        };
+    for (accel, scene) in &scenes {
         let options = RenderOptions {
             technique: Technique::Pt,
             resolution: Some([SIZE, SIZE]),
@@ -47,7 +41,7 @@ fn bench_scene(c: &mut Criterion, name: &str, path: &Path) {
         };
         let camera = Camera::new(scene.camera(None).expect("camera"), SIZE, SIZE);
         let mut pt = integrator::create(RenderContext {
-            scene: &scene,
+            scene,
             camera,
             options: &options,
         });

@@ -25,7 +25,10 @@ use vmerge::bsdf::{Bsdf, TransportMode};
 use vmerge::frame::Frame;
 use vmerge::integrator::upg::acceptance::{AngularBound, Estimator, PacketWidth, TentativeTracer};
 use vmerge::sampling::{concentric_disk, cosine_hemisphere, Rng, Stream};
-use vmerge::scene::{self, Camera, LoadOptions, Scene};
+use vmerge::scene::{Camera, Scene};
+
+mod common;
+use common::load_scene;
 
 /// Merges per pass, whatever the gather size.
 const MERGES: usize = 4096;
@@ -350,21 +353,8 @@ fn table_row(
 }
 
 fn bench_scene(c: &mut Criterion, name: &'static str, path: &Path, rows: &mut Vec<Row>) {
-    if !path.exists() {
-        eprintln!("skipping {name}: {} is absent", path.display());
+    let Some(scene) = load_scene(name, path, AccelKind::default_kind()) else {
         return;
-    }
-    let options = LoadOptions {
-        accel: AccelKind::default_kind(),
-        lenient: true,
-    };
-    // The conference room's mesh lives outside the project and may be absent too.
-    let scene = match scene::load(path, &options) {
-        Ok(scene) => scene,
-        Err(e) => {
-            eprintln!("skipping {name}: {e}");
-            return;
-        }
     };
     let radius = scene.default_radius();
     for side in [Side::Camera, Side::Light] {
