@@ -498,21 +498,15 @@ impl Estimator {
         mut done: impl FnMut(usize, Estimate),
     ) {
         assert_eq!(bounds.len(), rngs.len(), "one random stream per bound");
-        let mut reachable = Vec::with_capacity(bounds.len());
-        for (i, bound) in bounds.iter().enumerate() {
-            if bound.p_bound > 0.0 {
-                reachable.push(i);
-            } else {
-                done(
-                    i,
-                    Estimate {
-                        outcome: Outcome::Unreachable,
-                        trials: 0,
-                        rays: 0,
-                    },
-                );
-            }
+        let unreachable = Estimate {
+            outcome: Outcome::Unreachable,
+            trials: 0,
+            rays: 0,
+        };
+        for (i, _) in bounds.iter().enumerate().filter(|(_, b)| b.p_bound <= 0.0) {
+            done(i, unreachable);
         }
+        let reachable = (0..bounds.len()).filter(|&i| bounds[i].p_bound > 0.0);
         let finish = |bound: &AngularBound, first: Option<u32>, rays: u32| Estimate {
             outcome: match first {
                 Some(n) => Outcome::Estimate((n as f64 / bound.p_bound) as f32),
@@ -528,11 +522,13 @@ impl Estimator {
                     done(i, finish(&bounds[i], first, rays));
                 }
             }
-            PacketWidth::Eight => {
-                self.packets(tracer, bounds, rngs, reachable, |i, first, rays| {
-                    done(i, finish(&bounds[i], first, rays))
-                })
-            }
+            PacketWidth::Eight => self.packets(
+                tracer,
+                bounds,
+                rngs,
+                reachable.collect(),
+                |i, first, rays| done(i, finish(&bounds[i], first, rays)),
+            ),
         }
     }
 
