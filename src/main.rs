@@ -409,33 +409,28 @@ fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> 
     let observer = preview
         .as_mut()
         .map(|p| p as &mut dyn vmerge::render::Observer);
-    job.run_observed(
-        stop,
-        &flag,
-        |p| {
-            bar.set_position(p.iterations);
-            let mut msg = format!(
-                "{:.2} Msamples/s, {:.2} Mrays/s",
-                p.samples_per_second / 1e6,
-                p.rays_per_second / 1e6
-            );
-            if let Some(rmse) = p.rmse {
-                msg.push_str(&format!(", rmse {rmse:.4e}"));
-            }
-            if p.upg.merges > 0 {
-                let seconds = p.elapsed.as_secs_f64().max(1e-9);
-                msg.push_str(&format!(
-                    ", upg {:.2} trials/merge, {:.2} Mmerges/s, {:.2} Mtentative rays/s, {} capped",
-                    p.upg.trials as f64 / p.upg.merges as f64,
-                    p.upg.merges as f64 / seconds / 1e6,
-                    p.upg.tentative_rays as f64 / seconds / 1e6,
-                    p.upg.capped
-                ));
-            }
-            bar.set_message(msg);
-        },
-        observer,
-    )?;
+    job.run_observed(stop, &flag, observer, |p| {
+        bar.set_position(p.iterations);
+        let mut msg = format!(
+            "{:.2} Msamples/s, {:.2} Mrays/s",
+            p.samples_per_second / 1e6,
+            p.rays_per_second / 1e6
+        );
+        if let Some(rmse) = p.rmse {
+            msg.push_str(&format!(", rmse {rmse:.4e}"));
+        }
+        if p.upg.merges > 0 {
+            let seconds = p.elapsed.as_secs_f64().max(1e-9);
+            msg.push_str(&format!(
+                ", upg {:.2} trials/merge, {:.2} Mmerges/s, {:.2} Mtentative rays/s, {} capped",
+                p.upg.trials as f64 / p.upg.merges as f64,
+                p.upg.merges as f64 / seconds / 1e6,
+                p.upg.tentative_rays as f64 / seconds / 1e6,
+                p.upg.capped
+            ));
+        }
+        bar.set_message(msg);
+    })?;
     // The page stops with the render.
     drop(preview);
     bar.finish();

@@ -236,7 +236,7 @@ impl RenderJob<'_> {
         stop_flag: &StopFlag,
         on_progress: impl FnMut(&Progress),
     ) -> Result<(), RenderError> {
-        self.run_observed(stop, stop_flag, on_progress, None)
+        self.run_observed(stop, stop_flag, None, on_progress)
     }
 
     /// [`run`](Self::run), telling `observer` after every iteration.
@@ -244,8 +244,8 @@ impl RenderJob<'_> {
         &mut self,
         stop: StopAfter,
         stop_flag: &StopFlag,
-        mut on_progress: impl FnMut(&Progress),
         mut observer: Option<&mut dyn Observer>,
+        mut on_progress: impl FnMut(&Progress),
     ) -> Result<(), RenderError> {
         let camera = Camera::new(
             self.scene.camera(self.options.camera.as_deref())?,
