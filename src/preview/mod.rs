@@ -27,15 +27,15 @@ pub(crate) struct ImageData {
     pub height: u32,
     /// The iteration the pixels belong to (0 for a file or a reference).
     pub iteration: u64,
-    pub floats: std::sync::Arc<[u8]>,
+    pub floats: std::sync::Arc<Vec<u8>>,
 }
 
 impl ImageData {
     pub fn from_rgb(width: u32, height: u32, iteration: u64, pixels: &[crate::color::Rgb]) -> Self {
-        let mut floats = Vec::with_capacity(pixels.len() * 12);
-        for p in pixels {
-            for c in p.to_array() {
-                floats.extend_from_slice(&c.to_le_bytes());
+        let mut floats = vec![0; pixels.len() * 12];
+        for (out, p) in floats.chunks_exact_mut(12).zip(pixels) {
+            for (o, c) in out.chunks_exact_mut(4).zip(p.to_array()) {
+                o.copy_from_slice(&c.to_le_bytes());
             }
         }
         ImageData {
@@ -49,10 +49,10 @@ impl ImageData {
     /// The mean image of a film's `sums` after `iterations`.
     pub fn from_sums(width: u32, height: u32, iterations: u64, sums: &[[f64; 3]]) -> Self {
         let scale = 1.0 / iterations.max(1) as f64;
-        let mut floats = Vec::with_capacity(sums.len() * 12);
-        for s in sums {
-            for c in s {
-                floats.extend_from_slice(&((c * scale) as f32).to_le_bytes());
+        let mut floats = vec![0; sums.len() * 12];
+        for (out, s) in floats.chunks_exact_mut(12).zip(sums) {
+            for (o, c) in out.chunks_exact_mut(4).zip(s) {
+                o.copy_from_slice(&((c * scale) as f32).to_le_bytes());
             }
         }
         ImageData {

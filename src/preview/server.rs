@@ -6,7 +6,6 @@ use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::thread::JoinHandle;
-use std::time::Duration;
 use thiserror::Error;
 use tiny_http::{Header, Method, Request, Response, ResponseBox};
 
@@ -24,9 +23,6 @@ const PAGE: &str = include_str!("page.html");
 
 /// Threads answering requests; a long poll holds one for up to [`super::live::LONG_POLL`].
 const WORKERS: usize = 4;
-
-/// How often an idle worker looks whether the server is stopping.
-const POLL_STOP: Duration = Duration::from_millis(100);
 
 /// What the page's `/state?since=F&errors=K` asks: wait for a frame newer than `F` (when
 /// given), and send the error series from sample `K` on.
@@ -47,6 +43,7 @@ pub(crate) trait Content: Send + Sync + 'static {
 /// A running server; dropping it stops the workers and closes the port.
 pub struct Server {
     address: SocketAddr,
+    http: Arc<tiny_http::Server>,
     stop: Arc<AtomicBool>,
     workers: Vec<JoinHandle<()>>,
 }
@@ -67,29 +64,37 @@ impl Server {
         let loopback = bound.ip().is_loopback();
         let mut workers = Vec::with_capacity(WORKERS);
         for _ in 0..WORKERS {
-            let (http, content, stopping) = (http.clone(), content.clone(), stop.clone());
+            let (serving, content, stopping) = (http.clone(), content.clone(), stop.clone());
             let worker = std::thread::Builder::new()
                 .name("preview-http".into())
-                .spawn(move || {
-                    while !stopping.load(Ordering::Relaxed) {
-                        // An error is a failed accept, which does not stop the others.
-                        if let Ok(Some(request)) = http.recv_timeout(POLL_STOP) {
-                            // A client that went away needs no answer.
+                .spawn(move || loop {
+                    match serving.recv() {
+                        // A client that went away needs no answer.
+                        Ok(request) => {
                             let _ = answer_request(request, &*content, loopback);
                         }
+                        // Unblocked by `drop`, or a failed accept, which stops nothing else.
+                        Err(_) if stopping.load(Ordering::SeqCst) => break,
+                        Err(_) => {}
                     }
                 });
             match worker {
                 Ok(w) => workers.push(w),
                 Err(e) => {
                     // Those already started must not keep the port open.
-                    stop.store(true, Ordering::Relaxed);
+                    drop(Server {
+                        address: bound,
+                        http,
+                        stop,
+                        workers,
+                    });
                     return Err(bind(format!("cannot start a thread: {e}")));
                 }
             }
         }
         Ok(Server {
             address: bound,
+            http,
             stop,
             workers,
         })
@@ -103,12 +108,16 @@ impl Server {
 
 impl Drop for Server {
     fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
+        self.stop.store(true, Ordering::SeqCst);
+        // One wake-up for each worker: each takes one and, seeing `stop`, ends.
+        for _ in &self.workers {
+            self.http.unblock();
+        }
         for worker in self.workers.drain(..) {
             // A worker that panicked has nothing left to clean up.
             let _ = worker.join();
         }
-        // The last worker dropped the last handle on the listener, which closes it.
+        // `http` goes after this, the last handle on the listener, which closes it.
     }
 }
 
@@ -179,7 +188,7 @@ fn route(request: &Request, content: &dyn Content, loopback: bool) -> ResponseBo
                     respond(
                         200,
                         "application/octet-stream",
-                        Cursor::new(image.floats),
+                        Cursor::new(Bytes(image.floats)),
                         length,
                     )
                     .with_header(header("X-Vmerge-Width", &image.width.to_string()))
@@ -190,6 +199,15 @@ fn route(request: &Request, content: &dyn Content, loopback: bool) -> ResponseBo
             },
             None => text(404, "not found\n"),
         },
+    }
+}
+
+/// The image's bytes, shared with the state rather than copied for each request.
+struct Bytes(Arc<Vec<u8>>);
+
+impl AsRef<[u8]> for Bytes {
+    fn as_ref(&self) -> &[u8] {
+        &self.0
     }
 }
 
