@@ -13,6 +13,7 @@ pub mod frame;
 pub mod hashgrid;
 pub mod integrator;
 pub mod light;
+pub mod options;
 pub mod render;
 pub mod sampling;
 pub mod scene;

@@ -1,12 +1,16 @@
 //! The `vmerge` command line: parses arguments, calls the library, prints.
 
 use anyhow::{Context, Result};
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 use vmerge::accel::AccelKind;
-use vmerge::integrator::Technique;
+use vmerge::options::{OptionName, RenderOptions, Technique};
+
+/// The options' defaults, as the library writes them.
+const DEFAULT: RenderOptions = RenderOptions::DEFAULT;
 
 #[derive(Parser)]
 #[command(
@@ -64,7 +68,7 @@ enum Command {
 struct RenderArgs {
     /// The scene file (TOML).
     scene: PathBuf,
-    #[arg(long, short = 't', value_enum, default_value_t = Technique::Pt)]
+    #[arg(long, short = 't', value_parser = technique_parser(), default_value = DEFAULT.technique.name())]
     technique: Technique,
     /// Stop after N iterations (one sample per pixel each).
     #[arg(long, short = 'n')]
@@ -75,7 +79,7 @@ struct RenderArgs {
     /// Output EXR; a PNG preview is written next to it.
     #[arg(long, short = 'o', default_value = "render.exr")]
     output: PathBuf,
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = DEFAULT.seed)]
     seed: u64,
     /// Worker threads (default: all cores); the image does not depend on it.
     #[arg(long)]
@@ -86,7 +90,7 @@ struct RenderArgs {
     /// WxH, e.g. 512x512.
     #[arg(long, value_parser = parse_resolution)]
     resolution: Option<[u32; 2]>,
-    #[arg(long, value_enum, default_value_t = AccelKind::default_kind())]
+    #[arg(long, value_parser = accel_parser(), default_value = AccelKind::default_kind().name())]
     accel: AccelKind,
     /// Reference image: record the error series in the output.
     #[arg(long)]
@@ -110,7 +114,7 @@ struct RenderArgs {
 #[derive(Args)]
 struct TechniqueArgs {
     /// MIS power (2 = power heuristic, 1 = balance heuristic).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = DEFAULT.beta)]
     beta: f32,
     /// Merge radius in world units (default: 0.003 x the scene's bounding-sphere diameter).
     #[arg(long)]
@@ -122,7 +126,7 @@ struct TechniqueArgs {
     #[arg(long)]
     max_path_length: Option<u32>,
     /// Path length in segments from which Russian roulette may end paths.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = DEFAULT.roulette)]
     roulette: u32,
     /// Vertex merging only (vcm).
     #[arg(long)]
@@ -137,10 +141,10 @@ struct TechniqueArgs {
     #[arg(long)]
     unweighted: bool,
     /// upg, upg-camera: trace tentative rays 1 or 8 at a time.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = DEFAULT.upg_packet)]
     upg_packet: u32,
     /// upg, upg-camera: trials after which a merge is dropped (and counted).
-    #[arg(long, default_value_t = 10_000)]
+    #[arg(long, default_value_t = DEFAULT.upg_max_trials)]
     upg_max_trials: u32,
 }
 
@@ -162,12 +166,30 @@ struct ContinueArgs {
     force: bool,
     #[arg(long)]
     threads: Option<usize>,
-    #[arg(long, value_enum, default_value_t = AccelKind::default_kind())]
+    #[arg(long, value_parser = accel_parser(), default_value = AccelKind::default_kind().name())]
     accel: AccelKind,
     #[arg(long, value_parser = parse_duration)]
     snapshot: Option<Duration>,
     #[arg(long)]
     no_png: bool,
+}
+
+/// The techniques by name, with their descriptions in `--help`.
+fn technique_parser() -> impl TypedValueParser<Value = Technique> {
+    let names = Technique::ALL.map(|t| PossibleValue::new(t.name()).help(t.description()));
+    PossibleValuesParser::new(names)
+        .try_map(|name| Technique::from_name(&name).ok_or("no such technique"))
+}
+
+/// The ray-query backends by name.
+fn accel_parser() -> impl TypedValueParser<Value = AccelKind> {
+    let names = AccelKind::ALL.map(|k| PossibleValue::new(k.name()).help(k.description()));
+    PossibleValuesParser::new(names).try_map(|name| {
+        AccelKind::ALL
+            .into_iter()
+            .find(|k| k.name() == name)
+            .ok_or("no such backend")
+    })
 }
 
 fn parse_duration(s: &str) -> Result<Duration, String> {
@@ -219,6 +241,7 @@ fn parse_trace(s: &str) -> Result<vmerge::film::TraceWindow, String> {
 }
 
 fn main() -> ExitCode {
+    OptionName::spell_as_flags();
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
@@ -288,7 +311,7 @@ fn set_threads(threads: Option<usize>) -> Result<()> {
 fn render(args: RenderArgs) -> Result<()> {
     set_threads(args.threads)?;
     let t = args.technique_options;
-    let options = vmerge::render::RenderOptions {
+    let options = RenderOptions {
         technique: args.technique,
         seed: args.seed,
         camera: args.camera,
@@ -305,7 +328,6 @@ fn render(args: RenderArgs) -> Result<()> {
         upg_packet: t.upg_packet,
         upg_max_trials: t.upg_max_trials,
     };
-    options.validate()?;
     let setup = vmerge::render::NewRender {
         scene: args.scene,
         options,
@@ -324,6 +346,8 @@ fn render(args: RenderArgs) -> Result<()> {
     if stop.iterations.is_none() && stop.time.is_none() {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
+    // Checked again by the library; here before the scene loads, so a mistake costs nothing.
+    setup.options.validate()?;
     let scene = setup.load_scene()?;
     let job = setup.job(&scene)?;
     run_job(job, stop)
@@ -406,6 +430,7 @@ fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
 /// Whether an error is the user's input (a scene, a file, an option) rather than the system.
 fn is_input_error(e: &anyhow::Error) -> bool {
     use vmerge::film::FilmError;
+    use vmerge::options::OptionError;
     use vmerge::render::RenderError;
     let film = |f: &FilmError| !matches!(f, FilmError::Write { .. });
     e.chain().any(|cause| {
@@ -418,6 +443,7 @@ fn is_input_error(e: &anyhow::Error) -> bool {
             }
         } else {
             cause.downcast_ref::<vmerge::scene::SceneError>().is_some()
+                || cause.downcast_ref::<OptionError>().is_some()
         }
     })
 }

@@ -3,9 +3,9 @@
 use crate::accel::AccelKind;
 use crate::color::Rgb;
 use crate::film::{exr, png, ErrorTracker, Film, FilmError, Metadata, TraceWindow};
-use crate::integrator::{self, RenderContext, Technique, UpgCounters};
+use crate::integrator::{self, RenderContext, UpgCounters};
+use crate::options::{OptionError, OptionName, RenderOptions};
 use crate::scene::{Camera, LoadOptions, Scene, SceneError};
-use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -18,112 +18,20 @@ pub enum RenderError {
     Scene(#[from] SceneError),
     #[error(transparent)]
     Film(#[from] FilmError),
-    #[error("say when to stop: --iterations N and/or --time T")]
+    #[error(transparent)]
+    Options(#[from] OptionError),
+    #[error(
+        "say when to stop: {} N and/or {} T",
+        OptionName("iterations"),
+        OptionName("time")
+    )]
     NoStop,
-    #[error("--strategy and --unweighted apply to --technique bpt, not {0}")]
-    BptOnly(&'static str),
-    #[error("--strategy {0},{1}: no such technique (t counts the camera vertex, so t >= 1 and s + t >= 2)")]
-    NoSuchStrategy(u32, u32),
-    #[error("--no-vc, --no-vm and --alpha do not apply to upg and upg-camera (both connect and merge, at a fixed radius)")]
-    UpgOptions,
-    #[error("--upg-packet {0}: tentative rays go 1 or 8 at a time")]
-    UpgPacket(u32),
-    #[error("--upg-max-trials must be at least 1")]
-    UpgMaxTrials,
-    #[error("{file}: the scene changed since this render began (hash {recorded} recorded, {now} now); use --force to continue anyway")]
+    #[error("{file}: the scene changed since this render began (hash {recorded} recorded, {now} now); use {} to continue anyway", OptionName("force"))]
     SceneChanged {
         file: PathBuf,
         recorded: String,
         now: String,
     },
-}
-
-/// Every option that changes the image. Serialized into the EXR so `continue` can resume.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct RenderOptions {
-    pub technique: Technique,
-    pub seed: u64,
-    pub camera: Option<String>,
-    pub resolution: Option<[u32; 2]>,
-    /// MIS power (1 = balance heuristic, 2 = power heuristic).
-    pub beta: f32,
-    /// Merge radius in world units; `None` = the scene's default.
-    pub radius: Option<f32>,
-    /// Radius shrinking exponent (000 eq. 2.85); `None` = the technique's default.
-    pub alpha: Option<f32>,
-    /// Segments of a full path; `None` = the scene's default, 0 = unbounded.
-    pub max_path_length: Option<u32>,
-    /// Path length (in segments) from which Russian roulette may end paths.
-    pub roulette: u32,
-    pub no_vc: bool,
-    pub no_vm: bool,
-    /// `bpt` only: render the contribution of one (s, t) technique alone.
-    #[serde(default)]
-    pub strategy: Option<[u32; 2]>,
-    /// `bpt` only: leave the MIS weights out (each technique at weight 1).
-    #[serde(default)]
-    pub unweighted: bool,
-    /// `upg`, `upg-camera`: tentative rays traced 1 or 8 at a time.
-    #[serde(default = "default_upg_packet")]
-    pub upg_packet: u32,
-    /// `upg`, `upg-camera`: Bernoulli trials after which a merge is dropped.
-    #[serde(default = "default_upg_max_trials")]
-    pub upg_max_trials: u32,
-}
-
-fn default_upg_packet() -> u32 {
-    1
-}
-
-fn default_upg_max_trials() -> u32 {
-    crate::integrator::upg::acceptance::DEFAULT_MAX_TRIALS
-}
-
-impl RenderOptions {
-    /// Rejects combinations of options that do not mean anything.
-    pub fn validate(&self) -> Result<(), RenderError> {
-        if (self.strategy.is_some() || self.unweighted) && self.technique != Technique::Bpt {
-            return Err(RenderError::BptOnly(self.technique.name()));
-        }
-        let upg = matches!(self.technique, Technique::Upg | Technique::UpgCamera);
-        if upg && (self.no_vc || self.no_vm || self.alpha.is_some()) {
-            return Err(RenderError::UpgOptions);
-        }
-        if self.upg_packet != 1 && self.upg_packet != 8 {
-            return Err(RenderError::UpgPacket(self.upg_packet));
-        }
-        if self.upg_max_trials == 0 {
-            return Err(RenderError::UpgMaxTrials);
-        }
-        if let Some([s, t]) = self.strategy {
-            if t == 0 || s + t < 2 {
-                return Err(RenderError::NoSuchStrategy(s, t));
-            }
-        }
-        Ok(())
-    }
-}
-
-impl Default for RenderOptions {
-    fn default() -> Self {
-        RenderOptions {
-            technique: Technique::Pt,
-            seed: 0,
-            camera: None,
-            resolution: None,
-            beta: 2.0,
-            radius: None,
-            alpha: None,
-            max_path_length: None,
-            roulette: 3,
-            no_vc: false,
-            no_vm: false,
-            strategy: None,
-            unweighted: false,
-            upg_packet: default_upg_packet(),
-            upg_max_trials: default_upg_max_trials(),
-        }
-    }
 }
 
 /// Renders `iterations` iterations of `options.technique` and returns the film: the library
@@ -230,6 +138,9 @@ impl RenderJob<'_> {
         stop_flag: &StopFlag,
         mut on_progress: impl FnMut(&Progress),
     ) -> Result<(), RenderError> {
+        if stop.iterations.is_none() && stop.time.is_none() {
+            return Err(RenderError::NoStop);
+        }
         let camera = Camera::new(
             self.scene.camera(self.options.camera.as_deref())?,
             self.film.width,
@@ -351,6 +262,7 @@ impl NewRender {
 
     /// The job over `scene`, with a fresh film and the reference loaded and checked.
     pub fn job<'a>(&self, scene: &'a Scene) -> Result<RenderJob<'a>, RenderError> {
+        self.options.validate()?;
         let [width, height] = self.options.resolution.unwrap_or(scene.defaults.resolution);
         scene.camera(self.options.camera.as_deref())?;
         let canonical = std::fs::canonicalize(&self.scene).unwrap_or_else(|_| self.scene.clone());
@@ -423,6 +335,7 @@ pub fn continued_job(
     png: bool,
     snapshot_every: Option<Duration>,
 ) -> Result<RenderJob<'_>, RenderError> {
+    metadata.options.validate()?;
     let tracker = match &metadata.reference {
         Some(path) => {
             let path = PathBuf::from(path);

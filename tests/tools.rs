@@ -3,8 +3,8 @@
 use std::path::{Path, PathBuf};
 use vmerge::color::Rgb;
 use vmerge::film::{exr as film_exr, ErrorSample, Film, Image, Metadata, TraceWindow};
-use vmerge::integrator::Technique;
-use vmerge::render::RenderOptions;
+use vmerge::options::RenderOptions;
+use vmerge::options::Technique;
 use vmerge::sampling::Rng;
 use vmerge::tools;
 

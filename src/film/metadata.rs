@@ -6,8 +6,7 @@
 //! so any EXR header dump shows them one by one. Numbers are decimal text; floats are written in
 //! Rust's shortest form that parses back to the same bits, so a file round-trips exactly.
 
-use crate::integrator::Technique;
-use crate::render::RenderOptions;
+use crate::options::{RenderOptions, Technique};
 use std::fmt;
 use thiserror::Error;
 

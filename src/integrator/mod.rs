@@ -2,7 +2,7 @@
 //! per pixel and, for the bidirectional ones, one light sub-path per pixel (001 sec. 2.3).
 
 use crate::color::Rgb;
-use crate::render::RenderOptions;
+use crate::options::{RenderOptions, Technique};
 use crate::scene::{Camera, Scene};
 
 pub mod bpt;
@@ -11,45 +11,6 @@ pub mod mis;
 pub mod pt;
 pub mod upg;
 pub mod vcm;
-
-/// The rendering techniques.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "kebab-case")]
-pub enum Technique {
-    /// Path tracing with next-event estimation.
-    Pt,
-    /// Light tracing, splatting to the camera.
-    Lt,
-    /// Bidirectional path tracing.
-    Bpt,
-    /// Progressive photon mapping.
-    Ppm,
-    /// Bidirectional photon mapping.
-    Bpm,
-    /// Vertex connection and merging.
-    Vcm,
-    /// Unbiased photon gathering, merging from the light side.
-    Upg,
-    /// Unbiased photon gathering, merging from the camera side.
-    UpgCamera,
-}
-
-impl Technique {
-    pub fn name(self) -> &'static str {
-        match self {
-            Technique::Pt => "pt",
-            Technique::Lt => "lt",
-            Technique::Bpt => "bpt",
-            Technique::Ppm => "ppm",
-            Technique::Bpm => "bpm",
-            Technique::Vcm => "vcm",
-            Technique::Upg => "upg",
-            Technique::UpgCamera => "upg-camera",
-        }
-    }
-}
 
 /// Counters an iteration reports besides its image.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

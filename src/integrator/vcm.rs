@@ -175,12 +175,7 @@ impl<'a> VertexCm<'a> {
         let o = ctx.options;
         let modes = Modes::for_technique(o.technique, o.no_vc, o.no_vm);
         let base_radius = o.radius.unwrap_or_else(|| ctx.scene.default_radius());
-        // UPG is unbiased at any radius: it keeps its radius (000 sec. 2.4.6).
-        let alpha = if modes.vm && modes.merge == Merge::Density {
-            o.alpha.unwrap_or(0.75)
-        } else {
-            1.0
-        };
+        let alpha = o.alpha();
         let estimator = Estimator {
             packet: if o.upg_packet == 8 {
                 PacketWidth::Eight

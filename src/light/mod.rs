@@ -16,9 +16,16 @@ use crate::bsdf::Material;
 use crate::color::Rgb;
 use crate::frame::Frame;
 use crate::sampling::{self, Distribution1D};
-use crate::scene::SkyDesc;
 use glam::Vec3;
 use std::f32::consts::{FRAC_1_PI, PI};
+
+/// Background radiance L(w) = horizon + (zenith - horizon) * max(0, w . up).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SkyDesc {
+    pub horizon: Rgb,
+    pub zenith: Rgb,
+    pub up: Vec3,
+}
 
 /// Marks a primitive that emits nothing in the primitive-to-light tables.
 const NO_LIGHT: u32 = u32::MAX;

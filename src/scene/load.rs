@@ -3,11 +3,13 @@
 //! Everything is validated before anything is built: each problem is one [`SceneError`] naming
 //! the file and the entry. Only geometric normals are used; OBJ shading normals are ignored.
 
-use super::{CameraDesc, RenderDefaults, Scene, SceneError, SceneParts, SkyDesc};
+use super::{CameraDesc, RenderDefaults, Scene, SceneError, SceneParts};
 use crate::accel::{AccelKind, Geometry, Sphere};
 use crate::bsdf::{Material, MaterialKind};
 use crate::color::Rgb;
 use crate::light::Light;
+use crate::light::SkyDesc;
+use crate::options::OptionName;
 use glam::{Mat3, Vec3};
 use serde::Deserialize;
 use sha2::{Digest, Sha256};
@@ -433,8 +435,9 @@ impl Loader {
             return Err(self.invalid(
                 entry,
                 format!(
-                    "kd + ks = {:?} exceeds 1 and would create energy (use --lenient to clamp)",
-                    (kd + ks).to_array()
+                    "kd + ks = {:?} exceeds 1 and would create energy (use {} to clamp)",
+                    (kd + ks).to_array(),
+                    OptionName("lenient")
                 ),
             ));
         }

@@ -3,8 +3,7 @@
 
 use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, PACKET};
 use crate::bsdf::Material;
-use crate::color::Rgb;
-use crate::light::Lights;
+use crate::light::{Lights, SkyDesc};
 use glam::Vec3;
 use std::path::PathBuf;
 
@@ -15,14 +14,6 @@ mod load;
 pub use camera::{Camera, CameraDesc};
 pub use error::SceneError;
 pub use load::{load, LoadOptions};
-
-/// Background radiance L(w) = horizon + (zenith - horizon) * max(0, w . up).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SkyDesc {
-    pub horizon: Rgb,
-    pub zenith: Rgb,
-    pub up: Vec3,
-}
 
 /// The `[render]` table: per-scene defaults, each overridable on the command line.
 #[derive(Clone, Debug, PartialEq)]

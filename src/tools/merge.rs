@@ -2,7 +2,7 @@
 //! runs), weighted by their iterations.
 
 use crate::film::{exr, Film, FilmError, Metadata};
-use crate::render::RenderOptions;
+use crate::options::RenderOptions;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 

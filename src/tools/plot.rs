@@ -4,6 +4,7 @@
 //! (fontconfig, freetype) is needed.
 
 use crate::film::{atomic_write, FilmError, Metadata, TraceWindow};
+use crate::options::OptionName;
 use crate::tools::metadata;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -83,14 +84,16 @@ fn load_series(
             message,
         };
         if m.errors.is_empty() {
-            return Err(invalid(
-                "has no error series (render it with --reference)".into(),
-            ));
+            return Err(invalid(format!(
+                "has no error series (render it with {})",
+                OptionName("reference")
+            )));
         }
         if traces && m.traces.is_empty() {
-            return Err(invalid(
-                "has no trace windows (render it with --trace)".into(),
-            ));
+            return Err(invalid(format!(
+                "has no trace windows (render it with {})",
+                OptionName("trace")
+            )));
         }
         if traces && m.traces != first.traces {
             return Err(invalid(format!(

@@ -4,8 +4,9 @@
 
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext, Technique};
-use vmerge::render::RenderOptions;
+use vmerge::integrator::{self, RenderContext};
+use vmerge::options::RenderOptions;
+use vmerge::options::Technique;
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
 pub fn load(name: &str) -> Scene {

@@ -25,9 +25,6 @@ use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
 use thiserror::Error;
 
-/// The trial cap the command line uses unless told otherwise.
-pub const DEFAULT_MAX_TRIALS: u32 = 10_000;
-
 /// A bound holding at least this share of a lobe's probability saves too few trials to be
 /// worth its own sampler; the whole lobe is sampled instead.
 const WHOLE_LOBE_SHARE: f64 = 0.9;
@@ -461,7 +458,7 @@ impl Default for Estimator {
     fn default() -> Self {
         Estimator {
             packet: PacketWidth::One,
-            max_trials: DEFAULT_MAX_TRIALS,
+            max_trials: crate::options::RenderOptions::DEFAULT.upg_max_trials,
         }
     }
 }
