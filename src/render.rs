@@ -3,7 +3,8 @@
 use crate::accel::AccelKind;
 use crate::color::Rgb;
 use crate::film::{exr, png, ErrorTracker, Film, FilmError, Metadata, TraceWindow};
-use crate::integrator::{self, RenderContext, UpgCounters};
+use crate::integrator::upg::UpgCounters;
+use crate::integrator::{self, RenderContext};
 use crate::options::{OptionError, OptionName, RenderOptions};
 use crate::scene::{Camera, LoadOptions, Scene, SceneError};
 use std::path::PathBuf;

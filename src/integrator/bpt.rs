@@ -343,20 +343,9 @@ impl<'a> Bpt<'a> {
         let Some(ls) = sample.filter(|_| self.filter.allows(1, state.index + 1)) else {
             return Rgb::BLACK;
         };
-        let weight = self.filter.weight(|| {
-            mis::bpt_light_sample(
-                self.power,
-                &state.mis,
-                ls.eval.pdf_w,
-                ls.eval.rev_pdf_w,
-                ls.pdf_w(),
-                ls.il.direct_pdf_w,
-                ls.il.emission_pdf_w,
-                ls.cos_at_receiver,
-                ls.il.cos_at_light,
-                ls.light.is_delta(),
-            )
-        });
+        let weight = self
+            .filter
+            .weight(|| mis::bpt_light_sample(self.power, &state.mis, &ls.pdfs()));
         stats.rays += 1;
         if !ls.visible(self.scene(), hit) {
             return Rgb::BLACK;
@@ -380,17 +369,9 @@ impl<'a> Bpt<'a> {
         let Some(c) = Connection::new(bsdf, hit.position, &light_bsdf, lv.position) else {
             return Rgb::BLACK;
         };
-        let weight = self.filter.weight(|| {
-            mis::bpt_connect(
-                self.power,
-                &lv.mis,
-                &state.mis,
-                c.to_eval.rev_pdf_w,
-                c.from_eval.rev_pdf_w,
-                c.to_pdf_a(),
-                c.from_pdf_a(),
-            )
-        });
+        let weight = self
+            .filter
+            .weight(|| mis::bpt_connect(self.power, &lv.mis, &state.mis, &c.eye_to_light_pdfs()));
         stats.rays += 1;
         if self.scene().occluded(&Ray::spawn_between(
             hit.position,

@@ -4,11 +4,13 @@
 use crate::color::Rgb;
 use crate::options::{RenderOptions, Technique};
 use crate::scene::{Camera, Scene};
+use upg::UpgCounters;
 
 pub mod bpt;
 pub mod connection;
 pub mod mis;
 pub mod pt;
+pub mod subpath;
 pub mod upg;
 pub mod vcm;
 
@@ -30,45 +32,6 @@ impl std::ops::Add for IterationStats {
             rays: self.rays + other.rays,
             upg: self.upg + other.upg,
         }
-    }
-}
-
-/// The tentative-ray work of unbiased photon gathering (000 Table 3.2).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct UpgCounters {
-    /// Merges whose 1/p_acc was estimated.
-    pub merges: u64,
-    /// Bernoulli trials, and the tentative rays traced for them (a trial whose direction
-    /// misses the gathering sphere needs no ray).
-    pub trials: u64,
-    pub tentative_rays: u64,
-    /// Merges dropped at the trial cap.
-    pub capped: u64,
-}
-
-impl std::ops::Add for UpgCounters {
-    type Output = UpgCounters;
-    fn add(self, other: UpgCounters) -> UpgCounters {
-        UpgCounters {
-            merges: self.merges + other.merges,
-            trials: self.trials + other.trials,
-            tentative_rays: self.tentative_rays + other.tentative_rays,
-            capped: self.capped + other.capped,
-        }
-    }
-}
-
-impl UpgCounters {
-    /// Metadata entries: the thesis reports about 2.81 trials per merge (000 sec. 2.4.3).
-    pub fn statistics(&self) -> Vec<(String, String)> {
-        let per_merge = |n: u64| format!("{:.3}", n as f64 / self.merges.max(1) as f64);
-        vec![
-            ("upg_merges".into(), self.merges.to_string()),
-            ("upg_trials_per_merge".into(), per_merge(self.trials)),
-            ("upg_rays_per_merge".into(), per_merge(self.tentative_rays)),
-            ("upg_tentative_rays".into(), self.tentative_rays.to_string()),
-            ("upg_capped_merges".into(), self.capped.to_string()),
-        ]
     }
 }
 
