@@ -15,7 +15,11 @@ mod common;
 
 use glam::Vec3;
 use vmerge::bsdf::{Bsdf, TransportMode};
-use vmerge::integrator::mis::{self, BptStep, BptVertex, Power, VcmVertex, VcmWeights, VmHere};
+use vmerge::integrator::mis::{
+    self, BptStep, BptVertex, ConnectionPdfs, Gather, LightSamplePdfs, Neighbour, Power, VcmVertex,
+    VcmWeights, VmHere,
+};
+use vmerge::integrator::upg::Deferred;
 use vmerge::sampling::{Rng, Stream};
 use vmerge::scene::{Camera, Scene};
 
@@ -314,18 +318,7 @@ fn bpt_weights(power: Power, setup: &Setup, path: &FullPath, q: &PathPdfs) -> Ve
             if s == 0 {
                 mis::bpt_hit_light(power, &eye[0], l.pick * l.pdf_a, l.pick * l.emission_pdf_w)
             } else if s == 1 {
-                mis::bpt_light_sample(
-                    power,
-                    &eye[1],
-                    q.eye_w[1],
-                    q.light_w[1],
-                    l.pick * l.direct_pdf_w,
-                    l.direct_pdf_w,
-                    l.emission_pdf_w,
-                    q.cos_prev[1],
-                    l.cos_at_light,
-                    l.delta,
-                )
+                mis::bpt_light_sample(power, &eye[1], &light_sample_pdfs(path, q))
             } else if s == k {
                 let camera_pdf_a = q.eye_a[k - 1] * setup.n();
                 mis::bpt_to_camera(
@@ -336,15 +329,7 @@ fn bpt_weights(power: Power, setup: &Setup, path: &FullPath, q: &PathPdfs) -> Ve
                     setup.n(),
                 )
             } else {
-                mis::bpt_connect(
-                    power,
-                    &light[s - 1],
-                    &eye[s],
-                    q.eye_w[s - 1],
-                    q.light_w[s],
-                    q.eye_a[s - 1],
-                    q.light_a[s],
-                )
+                mis::bpt_connect(power, &light[s - 1], &eye[s], &connection_pdfs(q, s))
             }
         })
         .collect()
@@ -368,21 +353,82 @@ fn direct_weights(power: Power, path: &FullPath, q: &PathPdfs) -> Vec<f64> {
     pdfs.iter().map(|p| p / sum).collect()
 }
 
-/// How merges are made: which merges are techniques.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Gather {
-    /// Density estimation (vcm): every non-delta vertex.
-    Density,
-    /// UPG from the light side: the merge vertex's predecessor on the light side is a
-    /// non-delta surface vertex.
-    UpgLight,
-    /// UPG from the camera side: its successor on the eye side is one.
-    UpgCamera,
+/// The pdfs of light sampling at x_1, from the path's own.
+fn light_sample_pdfs(path: &FullPath, q: &PathPdfs) -> LightSamplePdfs {
+    let l = path.light;
+    LightSamplePdfs {
+        bsdf_pdf_w: q.eye_w[1],
+        bsdf_rev_pdf_w: q.light_w[1],
+        light_pdf_w: l.pick * l.direct_pdf_w,
+        direct_pdf_w: l.direct_pdf_w,
+        emission_pdf_w: l.emission_pdf_w,
+        cos_at_receiver: q.cos_prev[1],
+        cos_at_light: l.cos_at_light,
+        delta_light: l.delta,
+    }
+}
+
+/// The pdfs of the connection between light vertex x_{s-1} and eye vertex x_s.
+fn connection_pdfs(q: &PathPdfs, s: usize) -> ConnectionPdfs {
+    ConnectionPdfs {
+        light_rev_pdf_w: q.eye_w[s - 1],
+        eye_rev_pdf_w: q.light_w[s],
+        light_pdf_a: q.eye_a[s - 1],
+        eye_pdf_a: q.light_a[s],
+    }
+}
+
+/// A sub-path's MIS quantities at a vertex, with UPG's deferred merge.
+#[derive(Clone, Copy, Default)]
+struct State {
+    mis: VcmVertex,
+    deferred: Deferred,
+}
+
+impl State {
+    fn at(&self, w: &VcmWeights, rev_pdf_w: f32) -> VcmVertex {
+        self.deferred.settle(w, self.mis, rev_pdf_w)
+    }
+
+    fn arrive(&mut self, w: &VcmWeights, distance: f32, cos: f32, with_distance: bool) {
+        let arrival = w.arrive(&mut self.mis, distance, cos, with_distance);
+        self.deferred.arrive(arrival);
+    }
+
+    /// Scattering at a vertex as vcm.rs does it: the deferred merge settles, and a merge here
+    /// gathered from the other side is deferred in turn.
+    fn scatter(
+        &mut self,
+        w: &VcmWeights,
+        cos_out: f32,
+        pdf_w: f32,
+        rev_pdf_w: f32,
+        delta: bool,
+        here: VmHere,
+    ) {
+        if !delta {
+            self.mis = self.at(w, rev_pdf_w);
+        }
+        let ratio = w.scatter(
+            &mut self.mis,
+            cos_out,
+            pdf_w,
+            rev_pdf_w,
+            delta,
+            here == VmHere::Valid,
+        );
+        self.deferred = if !delta && here == VmHere::Deferred {
+            Deferred::new(w, ratio, cos_out)
+        } else {
+            Deferred::NONE
+        };
+    }
 }
 
 /// The VCM weights of the connection techniques s = 0..=k and the merges at x_1..x_{k-1},
-/// following vcm.rs: the light sub-path arrives at x_i, settles a deferred merge, is stored,
-/// and scatters on; the eye sub-path likewise from the camera.
+/// following vcm.rs: the light sub-path arrives at x_i, keeps a deferred merge only on a
+/// surface, is stored, and scatters on; the eye sub-path likewise from the camera. Which merges
+/// are techniques is the library's one rule, [`Gather::merge_at`].
 fn vcm_weights(
     w: &VcmWeights,
     gather: Gather,
@@ -392,14 +438,9 @@ fn vcm_weights(
     let k = q.k;
     let l = path.light;
     let surface = |i: usize| (1..k).contains(&i) && q.connectable[i];
-    let known = |ok: bool| if ok { VmHere::Valid } else { VmHere::Invalid };
+    let neighbour = |i: usize| Neighbour::surface_if(surface(i));
     let merge_valid = |j: usize| {
-        surface(j)
-            && match gather {
-                Gather::Density => true,
-                Gather::UpgLight => surface(j - 1),
-                Gather::UpgCamera => surface(j + 1),
-            }
+        surface(j) && gather.merge_at(neighbour(j - 1), neighbour(j + 1)) == VmHere::Valid
     };
     // mis(eta_j) of the merge at x_j from the gathering side's area pdf of x_j (000 eq. 2.80).
     let eta = |j: usize| {
@@ -409,65 +450,49 @@ fn vcm_weights(
         };
         w.eta_if(merge_valid(j), w.mis(1.0 / gather_pdf))
     };
-    let mut light = vec![VcmVertex::default(); k];
-    let mut state = w.light_origin(
-        l.pick * l.pdf_a,
-        l.pick * l.emission_pdf_w,
-        if l.infinite { 1.0 } else { l.cos_at_light },
-        l.delta,
-    );
+    let mut light = vec![State::default(); k];
+    let mut state = State {
+        mis: w.light_origin(
+            l.pick * l.pdf_a,
+            l.pick * l.emission_pdf_w,
+            if l.infinite { 1.0 } else { l.cos_at_light },
+            l.delta,
+        ),
+        deferred: Deferred::NONE,
+    };
     #[allow(clippy::needless_range_loop)] // i indexes several arrays of the path
     for i in 1..k {
-        w.arrive(
-            &mut state,
+        state.arrive(
+            w,
             q.dist2[i - 1].sqrt(),
             q.cos_prev[i],
             !(i == 1 && l.infinite),
         );
-        w.drop_pending(&mut state, surface(i));
+        state.deferred.keep_if(surface(i));
         light[i] = state;
         if i + 1 < k {
-            let here = match gather {
-                Gather::Density => VmHere::Valid,
-                Gather::UpgLight => known(surface(i - 1)),
-                Gather::UpgCamera => VmHere::Deferred,
-            };
+            let here = gather.merge_at(neighbour(i - 1), Neighbour::Unknown);
             let delta = !q.connectable[i];
-            w.scatter(
-                &mut state,
-                q.cos_next[i],
-                q.light_w[i],
-                q.eye_w[i],
-                delta,
-                here,
-            );
+            state.scatter(w, q.cos_next[i], q.light_w[i], q.eye_w[i], delta, here);
         }
     }
-    let mut eye = vec![VcmVertex::default(); k + 1];
-    let mut state = w.camera_origin(q.camera_pdf_w);
+    let mut eye = vec![State::default(); k + 1];
+    let mut state = State {
+        mis: w.camera_origin(q.camera_pdf_w),
+        deferred: Deferred::NONE,
+    };
     for i in (1..k).rev() {
-        w.arrive(&mut state, q.dist2[i].sqrt(), q.cos_next[i], true);
-        w.drop_pending(&mut state, surface(i));
+        state.arrive(w, q.dist2[i].sqrt(), q.cos_next[i], true);
+        state.deferred.keep_if(surface(i));
         eye[i] = state;
-        let here = match gather {
-            Gather::Density => VmHere::Valid,
-            Gather::UpgLight => VmHere::Deferred,
-            Gather::UpgCamera => known(surface(i + 1)),
-        };
+        let here = gather.merge_at(Neighbour::Unknown, neighbour(i + 1));
         let delta = !q.connectable[i];
-        w.scatter(
-            &mut state,
-            q.cos_prev[i],
-            q.eye_w[i],
-            q.light_w[i],
-            delta,
-            here,
-        );
+        state.scatter(w, q.cos_prev[i], q.eye_w[i], q.light_w[i], delta, here);
     }
     // Reaching the light: area lights add the last segment, the sky does not; the light
     // point is no surface to merge through.
     if !l.infinite {
-        w.arrive(&mut state, q.dist2[0].sqrt(), l.cos_at_light, true);
+        state.arrive(w, q.dist2[0].sqrt(), l.cos_at_light, true);
     }
     eye[0] = state;
     let vc = (0..=k)
@@ -476,33 +501,25 @@ fn vcm_weights(
                 return 0.0;
             }
             if s == 0 {
-                w.hit_light(&eye[0], l.pick * l.pdf_a, l.pick * l.emission_pdf_w)
+                w.hit_light(&eye[0].mis, l.pick * l.pdf_a, l.pick * l.emission_pdf_w)
             } else if s == 1 {
                 w.light_sample(
-                    &eye[1],
+                    &eye[1].at(w, q.light_w[1]),
                     eta(1),
-                    q.eye_w[1],
-                    q.light_w[1],
-                    l.pick * l.direct_pdf_w,
-                    l.direct_pdf_w,
-                    l.emission_pdf_w,
-                    q.cos_prev[1],
-                    l.cos_at_light,
-                    l.delta,
+                    &light_sample_pdfs(path, q),
                 )
             } else if s == k {
                 let camera_pdf_a = q.eye_a[k - 1] * w.light_paths;
-                w.to_camera(&light[k - 1], eta(k - 1), camera_pdf_a, q.eye_w[k - 1])
+                let rev = q.eye_w[k - 1];
+                w.to_camera(&light[k - 1].at(w, rev), eta(k - 1), camera_pdf_a, rev)
             } else {
+                let p = connection_pdfs(q, s);
                 w.connect(
-                    &light[s - 1],
+                    &light[s - 1].at(w, p.light_rev_pdf_w),
                     eta(s - 1),
-                    &eye[s],
+                    &eye[s].at(w, p.eye_rev_pdf_w),
                     eta(s),
-                    q.eye_w[s - 1],
-                    q.light_w[s],
-                    q.light_a[s],
-                    q.eye_a[s - 1],
+                    &p,
                 )
             }
         })
@@ -514,7 +531,14 @@ fn vcm_weights(
             if !merge_valid(j) {
                 return 0.0;
             }
-            w.merge(&light[j], &eye[j], q.eye_w[j], q.light_w[j], eta(j))
+            let (pdf_w, rev_pdf_w) = (q.eye_w[j], q.light_w[j]);
+            w.merge(
+                &light[j].at(w, pdf_w),
+                &eye[j].at(w, rev_pdf_w),
+                pdf_w,
+                rev_pdf_w,
+                eta(j),
+            )
         })
         .collect();
     (vc, vm)
