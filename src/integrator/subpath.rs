@@ -4,9 +4,11 @@
 
 use super::mis::{VcmVertex, VcmWeights};
 use super::upg::Deferred;
+use super::IterationStats;
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
+use crate::film::add_sample;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
 
@@ -79,4 +81,54 @@ pub struct EyeVertex<'b> {
     pub mis: VcmVertex,
     pub prev_surface: bool,
     pub path_length: u32,
+}
+
+/// What one task of the light pass produces: its vertices, where each of its paths ends, its
+/// camera splats and counters.
+#[derive(Default)]
+pub struct LightChunk {
+    pub vertices: Vec<LightVertex>,
+    pub ends: Vec<u32>,
+    pub splats: Vec<(usize, Rgb)>,
+    pub stats: IterationStats,
+}
+
+/// The light sub-paths of one iteration: every stored vertex, path after path.
+pub struct LightPaths {
+    pub vertices: Vec<LightVertex>,
+    /// Where each path's vertices begin, and one past the last path's.
+    path_ends: Vec<usize>,
+}
+
+impl LightPaths {
+    /// Concatenates the chunks in order (so the result does not depend on the threads), adding
+    /// their camera splats to `frame` and their counters to `stats`.
+    pub fn concatenate(
+        chunks: Vec<LightChunk>,
+        frame: &mut [Rgb],
+        stats: &mut IterationStats,
+    ) -> Self {
+        let mut vertices = Vec::new();
+        let mut path_ends = Vec::with_capacity(frame.len() + 1);
+        path_ends.push(0usize);
+        for chunk in chunks {
+            let base = vertices.len();
+            path_ends.extend(chunk.ends.iter().map(|&e| base + e as usize));
+            vertices.extend(chunk.vertices);
+            for (pixel, value) in chunk.splats {
+                add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
+            }
+            stats.rays += chunk.stats.rays;
+            stats.dropped_samples += chunk.stats.dropped_samples;
+        }
+        LightPaths {
+            vertices,
+            path_ends,
+        }
+    }
+
+    /// The light sub-path traced for `pixel`.
+    pub fn of_pixel(&self, pixel: usize) -> &[LightVertex] {
+        &self.vertices[self.path_ends[pixel]..self.path_ends[pixel + 1]]
+    }
 }

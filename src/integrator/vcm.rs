@@ -21,7 +21,7 @@
 
 use super::connection::{Connection, LightSample};
 use super::mis::{ConnectionPdfs, Gather, Neighbour, Power, VcmWeights, VmHere};
-use super::subpath::{EyeVertex, LightVertex, SubPath};
+use super::subpath::{EyeVertex, LightChunk, LightPaths, LightVertex, SubPath};
 use super::upg::acceptance::{Estimator, PacketWidth};
 use super::upg::merge::{Gathered, Tentative, UpgMerges};
 use super::upg::{Deferred, UpgCounters};
@@ -94,20 +94,8 @@ impl Modes {
 struct EyePass<'i> {
     w: VcmWeights,
     iteration: u64,
-    /// Every light vertex of the iteration, and the index where each pixel's sub-path begins.
-    vertices: &'i [LightVertex],
-    path_ends: &'i [usize],
+    light: &'i LightPaths,
     grid: Option<&'i HashGrid>,
-}
-
-/// What one task of the light pass produces: vertices and where each path's end, camera
-/// splats, counters.
-#[derive(Default)]
-struct LightChunk {
-    vertices: Vec<LightVertex>,
-    ends: Vec<u32>,
-    splats: Vec<(usize, Rgb)>,
-    stats: IterationStats,
 }
 
 pub struct VertexCm<'a> {
@@ -538,9 +526,9 @@ impl<'a> VertexCm<'a> {
         let w = &pass.w;
         let camera = &self.ctx.camera;
         let seed = self.ctx.options.seed;
-        let light_path = &pass.vertices[pass.path_ends[pixel]..pass.path_ends[pixel + 1]];
+        let light_path = pass.light.of_pixel(pixel);
         let gathered = pass.grid.map(|grid| Gathered {
-            vertices: pass.vertices,
+            vertices: &pass.light.vertices,
             grid,
         });
         let mut rng = Rng::for_sample(seed, pass.iteration, pixel as u64, Stream::Eye);
@@ -661,37 +649,18 @@ impl Integrator for VertexCm<'_> {
                 chunk
             })
             .collect();
-        let mut vertices = Vec::new();
-        let mut path_ends = Vec::with_capacity(paths + 1);
-        path_ends.push(0usize);
         let mut stats = IterationStats::default();
-        for LightChunk {
-            vertices: chunk_vertices,
-            ends,
-            splats,
-            stats: chunk_stats,
-        } in chunks
-        {
-            let base = vertices.len();
-            path_ends.extend(ends.iter().map(|&e| base + e as usize));
-            vertices.extend(chunk_vertices);
-            for (pixel, value) in splats {
-                add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
-            }
-            stats.rays += chunk_stats.rays;
-            stats.dropped_samples += chunk_stats.dropped_samples;
-        }
-        self.stored_vertices = vertices.len();
+        let light = LightPaths::concatenate(chunks, frame, &mut stats);
+        self.stored_vertices = light.vertices.len();
         let grid = self.modes.vm.then(|| {
-            let positions: Vec<Vec3> = vertices.iter().map(|v| v.position).collect();
+            let positions: Vec<Vec3> = light.vertices.iter().map(|v| v.position).collect();
             HashGrid::build(&positions, w.radius)
         });
         // Eye pass: one sub-path per pixel, each connecting to its own light sub-path.
         let pass = EyePass {
             w,
             iteration,
-            vertices: &vertices,
-            path_ends: &path_ends,
+            light: &light,
             grid: grid.as_ref(),
         };
         let eye_stats = frame
