@@ -44,8 +44,14 @@ enum Command {
         a: PathBuf,
         b: PathBuf,
     },
-    /// Print the mean absolute and RMS error between two images.
-    Errors { a: PathBuf, b: PathBuf },
+    /// Print the mean absolute and RMS error between two images (B the reference).
+    Errors {
+        a: PathBuf,
+        b: PathBuf,
+        /// Print the relative MSE, mean of (a - b)^2 / (b^2 + 0.01), instead.
+        #[arg(long)]
+        relative: bool,
+    },
     /// Print the mean RGB of an image.
     Average { input: PathBuf },
     /// Print the render time recorded in a render.
@@ -283,9 +289,13 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bake { output, input } => Ok(tools::bake(&output, &input)?),
         Command::Strip { output, input } => Ok(tools::strip(&output, &input)?),
         Command::Diff { output, a, b } => Ok(tools::diff(&output, &a, &b)?),
-        Command::Errors { a, b } => {
-            let (mae, rmse) = tools::errors(&a, &b)?;
-            println!("{mae} {rmse}");
+        Command::Errors { a, b, relative } => {
+            if relative {
+                println!("{}", tools::relative_mse(&a, &b)?);
+            } else {
+                let (mae, rmse) = tools::errors(&a, &b)?;
+                println!("{mae} {rmse}");
+            }
             Ok(())
         }
         Command::Average { input } => {
