@@ -9,7 +9,8 @@
 //! the thread count, and it is a pure function of the seed and the iterations: `continue`
 //! rebuilds it by tracing the light passes of those iterations again.
 //!
-//! A lookup filters the 2 x 2 x 2 cells around x (those whose centres bound x, as bilinear
+//! A lookup (one hash probe: the counts are also kept by 2 x 2 x 2 blocks) filters the
+//! 2 x 2 x 2 cells around x (those whose centres bound x, as bilinear
 //! filtering would) with weights w_c = exp(-|x - x_c| / r_c) over the cells that counted
 //! anything (002 sec. 5.1; distances in cell sides, so the filter does not depend on the
 //! scene's units), giving q, the count per cell over n_it iterations; regularised to at least
@@ -30,10 +31,25 @@ pub struct DensityMap {
     cell_size: f32,
     inv_cell: f32,
     counts: HashMap<Cell, u32, FxBuildHasher>,
+    /// The counts again, by 2 x 2 x 2 blocks keyed by their lowest cell, so that a lookup is
+    /// one probe instead of eight.
+    blocks: HashMap<Cell, [u32; 8], FxBuildHasher>,
     /// Iterations inserted so far, and how many the map takes.
     iterations: u32,
     max_iterations: u32,
 }
+
+/// The cells of a block, as offsets from its lowest cell.
+const BLOCK: [[i32; 3]; 8] = [
+    [0, 0, 0],
+    [1, 0, 0],
+    [0, 1, 0],
+    [1, 1, 0],
+    [0, 0, 1],
+    [1, 0, 1],
+    [0, 1, 1],
+    [1, 1, 1],
+];
 
 /// Light vertices counted by one parallel task before the counts are summed.
 const CHUNK: usize = 1 << 14;
@@ -46,6 +62,7 @@ impl DensityMap {
             cell_size,
             inv_cell: 1.0 / cell_size,
             counts: HashMap::default(),
+            blocks: HashMap::default(),
             iterations: 0,
             max_iterations,
         }
@@ -75,8 +92,13 @@ impl DensityMap {
             })
             .collect();
         for counts in partial {
-            for (cell, n) in counts {
+            for (cell @ [x, y, z], n) in counts {
                 *self.counts.entry(cell).or_insert(0) += n;
+                for (slot, [dx, dy, dz]) in BLOCK.iter().enumerate() {
+                    self.blocks
+                        .entry([x - dx, y - dy, z - dz])
+                        .or_insert([0; 8])[slot] += n;
+                }
             }
         }
         self.iterations += 1;
@@ -92,19 +114,16 @@ impl DensityMap {
         let s = x * self.inv_cell - Vec3::splat(0.5);
         let base = s.floor();
         let (mut weighted, mut weights) = (0.0f32, 0.0f32);
-        for dz in 0..2 {
-            for dy in 0..2 {
-                for dx in 0..2 {
-                    let offset = Vec3::new(dx as f32, dy as f32, dz as f32);
-                    let corner = base + offset;
-                    let cell = [corner.x as i32, corner.y as i32, corner.z as i32];
-                    let Some(&count) = self.counts.get(&cell) else {
-                        continue;
-                    };
-                    let w = (-(s - corner).length()).exp();
-                    weighted += w * count as f32;
-                    weights += w;
+        let key = [base.x as i32, base.y as i32, base.z as i32];
+        if let Some(counts) = self.blocks.get(&key) {
+            for (&count, [dx, dy, dz]) in counts.iter().zip(BLOCK) {
+                if count == 0 {
+                    continue;
                 }
+                let corner = base + Vec3::new(dx as f32, dy as f32, dz as f32);
+                let w = (-(s - corner).length()).exp();
+                weighted += w * count as f32;
+                weights += w;
             }
         }
         let q = if weights > 0.0 {
@@ -119,7 +138,8 @@ impl DensityMap {
 
     /// Occupied cells, and the bytes their counters take.
     pub fn statistics(&self) -> Vec<(String, String)> {
-        let bytes = self.counts.capacity() * (std::mem::size_of::<(Cell, u32)>() + 1);
+        let bytes = self.counts.capacity() * (std::mem::size_of::<(Cell, u32)>() + 1)
+            + self.blocks.capacity() * (std::mem::size_of::<(Cell, [u32; 8])>() + 1);
         vec![
             ("density_map_cells".into(), self.counts.len().to_string()),
             ("density_map_bytes".into(), bytes.to_string()),
