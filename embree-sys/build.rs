@@ -103,9 +103,10 @@ fn main() {
             None => "pkg-config embree4/embree3, /usr, /usr/local".to_string(),
         };
         panic!(
-            "{version} not found (looked in {place}). Install it (Debian: ./scripts/setup-debian, \
-             or apt-get install libembree-dev libclang1-14 libclang-common-14-dev), set \
-             EMBREE_DIR to its prefix, or build without Embree: cargo build --no-default-features"
+            "{version} not found (looked in {place}). Install it (Debian: libembree-dev, which is \
+             Embree 3 on Debian 12 and Embree 4 on Debian 13, with libclang for bindgen; \
+             ./scripts/setup-debian installs them), set EMBREE_DIR to its prefix, or build \
+             without Embree: cargo build --no-default-features"
         );
     };
     let version = found.version;
