@@ -5,7 +5,7 @@
 //! spheres as one sphere-point geometry; MEDIUM build quality (shared/notes/embree.md: HIGH
 //! costs several times the build for ~13% faster traversal). Speaks Embree 3's and Embree 4's
 //! APIs (`cfg(embree3)` / `cfg(embree4)`, from the version embree-sys found): only the ray
-//! queries differ, in [`query`]; both versions are asked the same questions.
+//! queries differ, in `query`; both versions are asked the same questions.
 
 use super::{sphere_roots, Accel, AccelError, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
 use embree_sys as sys;
@@ -376,8 +376,8 @@ mod query {
     use super::{sys, ValidMask};
     use std::ptr::null_mut;
 
-    /// The features vmerge's scenes have. Only SYCL specialises traversal on the mask; Embree's
-    /// CPU kernels handle every feature whatever it says.
+    /// The features vmerge's scenes have. The mask is for SYCL, which compiles traversal for the
+    /// features named only; naming exactly these keeps it right there too.
     const FEATURES: sys::RTCFeatureFlags = sys::RTCFeatureFlags_RTC_FEATURE_FLAG_TRIANGLE
         | sys::RTCFeatureFlags_RTC_FEATURE_FLAG_SPHERE_POINT;
 
