@@ -14,6 +14,7 @@ pub mod hashgrid;
 pub mod integrator;
 pub mod light;
 pub mod options;
+pub mod preview;
 pub mod render;
 pub mod sampling;
 pub mod scene;

@@ -3,6 +3,7 @@
 use anyhow::{Context, Result};
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -68,6 +69,22 @@ enum Command {
         #[arg(long)]
         traces: bool,
     },
+    /// Serve a page showing renders: exposure, metadata, error chart, split comparison.
+    View {
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Where to serve (loopback unless told otherwise).
+        #[arg(long, value_name = "ADDR", default_value = vmerge::preview::DEFAULT_ADDRESS)]
+        address: SocketAddr,
+    },
+}
+
+/// `--preview [ADDR]`: a live page of the render at ADDR (default: loopback, any free port).
+#[derive(Args)]
+struct PreviewArg {
+    /// Serve a live page of the render (default 127.0.0.1:0: loopback, a free port; the URL is printed).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = vmerge::preview::DEFAULT_ADDRESS)]
+    preview: Option<SocketAddr>,
 }
 
 #[derive(Args)]
@@ -113,6 +130,8 @@ struct RenderArgs {
     /// Clamp Phong materials with kd + ks > 1 instead of rejecting the scene.
     #[arg(long)]
     lenient: bool,
+    #[command(flatten)]
+    preview: PreviewArg,
     #[command(flatten)]
     technique_options: TechniqueArgs,
 }
@@ -184,6 +203,8 @@ struct ContinueArgs {
     snapshot: Option<Duration>,
     #[arg(long)]
     no_png: bool,
+    #[command(flatten)]
+    preview: PreviewArg,
 }
 
 /// The techniques by name, with their descriptions in `--help`.
@@ -322,6 +343,7 @@ fn run(cli: Cli) -> Result<()> {
             inputs,
             traces,
         } => Ok(tools::plot(&output, &inputs, traces)?),
+        Command::View { files, address } => view(&files, address),
     }
 }
 
@@ -379,7 +401,7 @@ fn render(args: RenderArgs) -> Result<()> {
     setup.options.validate()?;
     let scene = setup.load_scene()?;
     let job = setup.job(&scene)?;
-    run_job(job, stop)
+    run_job(job, stop, args.preview.preview)
 }
 
 fn resume(args: ContinueArgs) -> Result<()> {
@@ -396,12 +418,27 @@ fn resume(args: ContinueArgs) -> Result<()> {
     if stop.iterations.is_none() && stop.time.is_none() {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
-    run_job(job, stop)
+    run_job(job, stop, args.preview.preview)
 }
 
 use vmerge::render::{RenderJob, StopAfter};
 
-fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
+fn view(files: &[PathBuf], address: SocketAddr) -> Result<()> {
+    let viewer = vmerge::preview::Viewer::load(files)?;
+    let server = viewer.serve(address)?;
+    let (stop, stopped) = std::sync::mpsc::channel();
+    ctrlc::set_handler(move || {
+        // The receiver lives until main returns.
+        let _ = stop.send(());
+    })
+    .context("installing the signal handler")?;
+    eprintln!("view at http://{}/ (Ctrl-C stops)", server.address());
+    // Either a signal, or the handler is gone: stop in both cases.
+    let _ = stopped.recv();
+    Ok(())
+}
+
+fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> Result<()> {
     let flag = vmerge::render::StopFlag::default();
     let handler_flag = flag.clone();
     ctrlc::set_handler(move || {
@@ -416,7 +453,16 @@ fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
         indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos} it {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    job.run(stop, &flag, |p| {
+    let mut preview = preview
+        .map(|address| vmerge::preview::LivePreview::start(address, &job, stop))
+        .transpose()?;
+    if let Some(p) = &preview {
+        eprintln!("preview at http://{}/", p.address());
+    }
+    let observer = preview
+        .as_mut()
+        .map(|p| p as &mut dyn vmerge::render::Observer);
+    job.run_observed(stop, &flag, observer, |p| {
         bar.set_position(p.iterations);
         let mut msg = format!(
             "{:.2} Msamples/s, {:.2} Mrays/s",
@@ -438,6 +484,8 @@ fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
         }
         bar.set_message(msg);
     })?;
+    // The page stops with the render.
+    drop(preview);
     bar.finish();
     eprintln!(
         "wrote {} ({} iterations, {:.1} s{})",
