@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 use vmerge::accel::{AccelKind, Geometry};
 use vmerge::bsdf::{Material, MaterialKind};
 use vmerge::color::Rgb;
-use vmerge::integrator::Technique;
-use vmerge::render::RenderOptions;
+use vmerge::options::RenderOptions;
+use vmerge::options::Technique;
 use vmerge::sampling::Rng;
 use vmerge::scene::{self, Camera, CameraDesc, LoadOptions, RenderDefaults, Scene, SceneParts};
 
