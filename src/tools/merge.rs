@@ -51,7 +51,22 @@ pub fn merge(out: &Path, inputs: &[PathBuf]) -> Result<(), FilmError> {
             }
             seeds.push((seed, from));
         }
+        if film.iterations + other.iterations > crate::options::MAX_ITERATIONS {
+            return Err(FilmError::Invalid {
+                file: path.clone(),
+                message: format!(
+                    "the merge would have more than {} iterations",
+                    crate::options::MAX_ITERATIONS
+                ),
+            });
+        }
         film.accumulate(&other);
+        if film.sum.iter().flatten().any(|s| !s.is_finite()) {
+            return Err(FilmError::Invalid {
+                file: path.clone(),
+                message: "its sums and the earlier inputs' overflow f64 together".into(),
+            });
+        }
         metadata.render_seconds += m.render_seconds;
         metadata.dropped_samples += m.dropped_samples;
     }
