@@ -38,12 +38,13 @@ impl Kind {
         }
     }
 
+    /// The kind with its article: "a scene file", "an OBJ file".
     pub fn name(self) -> &'static str {
         match self {
-            Kind::Scene => "scene file",
-            Kind::Obj => "OBJ file",
-            Kind::Mtl => "MTL file",
-            Kind::Exr => "EXR file",
+            Kind::Scene => "a scene file",
+            Kind::Obj => "an OBJ file",
+            Kind::Mtl => "an MTL file",
+            Kind::Exr => "an EXR file",
         }
     }
 }
@@ -84,7 +85,7 @@ pub fn check_input(path: &Path, kind: Kind) -> Result<u64, FileError> {
     if path.as_os_str().is_empty() {
         return Err(error(
             path,
-            format!("no {} named (the path is empty)", kind.name()),
+            format!("the path is empty where {} should be", kind.name()),
         ));
     }
     // `metadata` follows symbolic links and, unlike opening, does not block on a FIFO.
@@ -97,7 +98,7 @@ fn check_metadata(path: &Path, kind: Kind, meta: &std::fs::Metadata) -> Result<u
         return Err(error(
             path,
             format!(
-                "is {}, not a {} (only regular files are read)",
+                "is {}, not {} (only regular files are read)",
                 describe(meta.file_type()),
                 kind.name()
             ),
@@ -107,7 +108,7 @@ fn check_metadata(path: &Path, kind: Kind, meta: &std::fs::Metadata) -> Result<u
         return Err(error(
             path,
             format!(
-                "is {} bytes, more than the {} MiB a {} may have",
+                "is {} bytes, more than the {} MiB {} may have",
                 meta.len(),
                 kind.limit() >> 20,
                 kind.name()

@@ -339,9 +339,7 @@ fn check_sums(
         file: path.into(),
         message,
     };
-    metadata
-        .validate()
-        .map_err(|e| invalid(format!("recorded {e}")))?;
+    metadata.validate().map_err(|e| invalid(e.to_string()))?;
     for (i, s) in sum.iter().enumerate() {
         for (c, value) in s.iter().enumerate() {
             let (x, y) = (i % width.max(1), i / width.max(1));

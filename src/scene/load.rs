@@ -143,11 +143,13 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
 /// Reads and validates the scene file and its meshes, without building the ray queries.
 pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, SceneError> {
     let text = files::read_text(path, Kind::Scene)?;
-    let file: SceneFile = toml::from_str(&text).map_err(|e| SceneError::Parse {
+    let parse_error = |e: toml::de::Error| SceneError::Parse {
         file: path.to_path_buf(),
         // TOML's messages quote the offending line, which may be any length.
         message: files::shorten_lines(&e.to_string(), 200),
-    })?;
+    };
+    check_array_lengths(path, "", &text.parse::<toml::Table>().map_err(parse_error)?)?;
+    let file: SceneFile = toml::from_str(&text).map_err(parse_error)?;
     let mut loader = Loader {
         path: path.to_path_buf(),
         dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
@@ -163,6 +165,58 @@ pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, Scen
     };
     loader.hasher.update(text.as_bytes());
     loader.build(file)
+}
+
+/// The length of every fixed-size array of the scene file, by key.
+const ARRAY_LENGTHS: &[(&str, usize)] = &[
+    ("resolution", 2),
+    ("position", 3),
+    ("look_at", 3),
+    ("up", 3),
+    ("center", 3),
+    ("rotate_deg", 3),
+    ("translate", 3),
+    ("kd", 3),
+    ("ks", 3),
+    ("emission", 3),
+    ("intensity", 3),
+    ("direction", 3),
+    ("irradiance", 3),
+    ("horizon", 3),
+    ("zenith", 3),
+];
+
+/// Arrays of the wrong length are refused: the TOML reader would fill `[f32; 3]` from the
+/// first three numbers of a longer array and drop the rest unseen.
+fn check_array_lengths(path: &Path, at: &str, table: &toml::Table) -> Result<(), SceneError> {
+    for (key, value) in table {
+        let entry = if at.is_empty() {
+            key.clone()
+        } else {
+            format!("{at}.{key}")
+        };
+        match value {
+            toml::Value::Table(t) => check_array_lengths(path, &entry, t)?,
+            toml::Value::Array(items) => {
+                if let Some(&(_, n)) = ARRAY_LENGTHS.iter().find(|(k, _)| k == key) {
+                    if items.len() != n {
+                        return Err(SceneError::Invalid {
+                            file: path.to_path_buf(),
+                            entry,
+                            message: format!("expected {n} numbers, found {}", items.len()),
+                        });
+                    }
+                }
+                for (i, item) in items.iter().enumerate() {
+                    if let toml::Value::Table(t) = item {
+                        check_array_lengths(path, &format!("{entry}[{i}]"), t)?;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 struct Loader {

@@ -34,6 +34,10 @@ pub fn merge(out: &Path, inputs: &[PathBuf]) -> Result<(), FilmError> {
             message: "merge needs at least one input".into(),
         });
     };
+    crate::files::check_output(out, inputs).map_err(|e| FilmError::Invalid {
+        file: e.file,
+        message: e.message,
+    })?;
     let (mut film, mut metadata) = exr::read_render(first_path)?;
     let mut seeds: Vec<(u64, &Path)> = seeds_of(&metadata, first_path)?;
     for path in rest {
