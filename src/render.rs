@@ -37,7 +37,7 @@ pub enum RenderError {
     /// The final image could not be written at all.
     #[error("{}: cannot write the image ({message}), nor a copy in {}; {}", wanted.display(), std::env::temp_dir().display(), match last_good {
         Some(p) => format!("the last good snapshot is {}", p.display()),
-        None => "no snapshot was written, the render is lost".to_string(),
+        None => "no snapshot of it remains, the render is lost".to_string(),
     })]
     Lost {
         wanted: PathBuf,

@@ -225,3 +225,140 @@ fn meaningless_strategies_exit_2() {
         assert!(written.is_empty(), "{args:?}: wrote {written:?}");
     }
 }
+
+/// Starts a render of the Cornell box into `output` for `seconds`, with snapshots every 100 ms
+/// and the fallback directory `tmp`.
+fn snapshotting_render(output: &Path, tmp: &Path, seconds: &str) -> std::process::Child {
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml");
+    vmerge()
+        .args([
+            "render",
+            "--resolution",
+            "16x16",
+            "--accel",
+            "bvh",
+            "--threads",
+            "1",
+        ])
+        .args(["--snapshot", "100ms", "--time", seconds, "-o"])
+        .arg(output)
+        .arg(&scene)
+        .env("TMPDIR", tmp)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+fn wait_for(path: &Path) {
+    let start = std::time::Instant::now();
+    while !path.exists() {
+        assert!(
+            start.elapsed().as_secs() < 30,
+            "{} never appeared",
+            path.display()
+        );
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+}
+
+/// The output directory vanishes mid-render: snapshots fail with a warning, the render goes
+/// on, and the final image goes to the temporary directory, which the message names; the exit
+/// code says the image is not where it was asked for.
+#[test]
+fn a_vanished_output_directory_loses_no_render() {
+    let temp = tempfile::tempdir().unwrap();
+    let (dir, tmp) = (temp.path().join("out"), temp.path().join("tmp"));
+    std::fs::create_dir(&dir).unwrap();
+    std::fs::create_dir(&tmp).unwrap();
+    let output = dir.join("render.exr");
+    let child = snapshotting_render(&output, &tmp, "2s");
+    wait_for(&output);
+    std::fs::remove_dir_all(&dir).unwrap();
+    let result = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("snapshot not written"), "{stderr}");
+    assert!(
+        stderr.contains("trying again at the next snapshot"),
+        "{stderr}"
+    );
+    let written: Vec<PathBuf> = std::fs::read_dir(&tmp)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(written.len(), 1, "{written:?}");
+    assert!(
+        stderr.contains(&format!(
+            "it was written to {} instead",
+            written[0].display()
+        )),
+        "{stderr}"
+    );
+    let (film, metadata) = vmerge::film::exr::read_render(&written[0]).unwrap();
+    assert!(film.iterations > 1 && metadata.iterations == film.iterations);
+}
+
+/// Snapshots that fail while the directory is gone are retried: once it is back, the next
+/// snapshot and the final image land where asked.
+#[test]
+fn failed_snapshots_are_retried() {
+    let temp = tempfile::tempdir().unwrap();
+    let (dir, tmp) = (temp.path().join("out"), temp.path().join("tmp"));
+    std::fs::create_dir(&dir).unwrap();
+    std::fs::create_dir(&tmp).unwrap();
+    let output = dir.join("render.exr");
+    let child = snapshotting_render(&output, &tmp, "2s");
+    wait_for(&output);
+    std::fs::remove_dir_all(&dir).unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(400));
+    std::fs::create_dir(&dir).unwrap();
+    let result = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(0), "{stderr}");
+    assert!(stderr.contains("snapshot not written"), "{stderr}");
+    let (film, _) = vmerge::film::exr::read_render(&output).unwrap();
+    assert!(film.iterations > 1);
+    assert_eq!(std::fs::read_dir(&tmp).unwrap().count(), 0);
+}
+
+/// A render removes the temporary files a killed write of its output left, and says so; a
+/// `usemtl` naming no material is a warning that names it.
+#[test]
+fn stale_temporaries_go_and_unknown_materials_are_named() {
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/bad/bad-fov");
+    let temp = tempfile::tempdir().unwrap();
+    for file in ["room.obj", "room.mtl"] {
+        let text = std::fs::read_to_string(fixture.join(file)).unwrap();
+        std::fs::write(
+            temp.path().join(file),
+            text.replace("usemtl floor", "usemtl flor"),
+        )
+        .unwrap();
+    }
+    let scene = std::fs::read_to_string(fixture.join("scene.toml")).unwrap();
+    std::fs::write(
+        temp.path().join("scene.toml"),
+        scene.replace("fov = 190.0", "fov = 40.0"),
+    )
+    .unwrap();
+    // No process has an id above the kernel's maximum (4194304).
+    let stale = temp.path().join(".out.exr.tmp-4294967295-3");
+    std::fs::write(&stale, "half a snapshot").unwrap();
+    let result = vmerge()
+        .args(["render", "-n", "1", "--resolution", "8x8", "--accel", "bvh"])
+        .args(["-o", "out.exr", "scene.toml"])
+        .current_dir(temp.path())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(0), "{stderr}");
+    assert!(!stale.exists(), "{stderr}");
+    assert!(
+        stderr.contains("removed ./.out.exr.tmp-4294967295-3"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("room.obj: line 10: usemtl 'flor' names no material (known: floor, light)"),
+        "{stderr}"
+    );
+}

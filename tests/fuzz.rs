@@ -33,9 +33,27 @@ impl Rng {
 
 /// Numbers that sit at the edges of what the readers accept.
 const NUMBERS: &[&str] = &[
-    "0", "-0", "-1", "1", "nan", "NaN", "inf", "-inf", "1e39", "-1e39", "1e-40", "1e30",
-    "4294967295", "4294967296", "18446744073709551615", "-9223372036854775808", "0.5", "2",
-    "1e8", "3e38", "",
+    "0",
+    "-0",
+    "-1",
+    "1",
+    "nan",
+    "NaN",
+    "inf",
+    "-inf",
+    "1e39",
+    "-1e39",
+    "1e-40",
+    "1e30",
+    "4294967295",
+    "4294967296",
+    "18446744073709551615",
+    "-9223372036854775808",
+    "0.5",
+    "2",
+    "1e8",
+    "3e38",
+    "",
 ];
 
 /// One mutation of `input`: a flipped byte, a cut, a number swapped for an edge value, a
@@ -190,7 +208,11 @@ fn mutated_inputs_load_or_fail_cleanly() {
     const INPUTS: usize = 21_000;
     const WORKERS: u64 = 2;
     let (sources, shipped) = scene_sources();
-    assert!(sources.len() >= 20 && shipped > 0, "found {} scene folders", sources.len());
+    assert!(
+        sources.len() >= 20 && shipped > 0,
+        "found {} scene folders",
+        sources.len()
+    );
     let temp = tempfile::tempdir().unwrap();
     let exr_seed = render_bytes(temp.path());
     let done = AtomicUsize::new(0);
@@ -227,7 +249,9 @@ fn mutated_inputs_load_or_fail_cleanly() {
                             let path = dir.join("render.exr");
                             std::fs::write(&path, &bytes).unwrap();
                             let result = catch_unwind(|| {
-                                exr::read_render(&path).map(|_| ()).map_err(|e| e.to_string())
+                                exr::read_render(&path)
+                                    .map(|_| ())
+                                    .map_err(|e| e.to_string())
                             });
                             ("render.exr".to_string(), judge(result, "render.exr"))
                         } else {
@@ -310,5 +334,8 @@ fn mutated_inputs_load_or_fail_cleanly() {
         elapsed.as_secs_f64()
     );
     assert!(loaded + refused >= 20_000);
-    assert!(refused > 1000 && loaded > 1000, "{loaded} loaded, {refused} refused");
+    assert!(
+        refused > 1000 && loaded > 1000,
+        "{loaded} loaded, {refused} refused"
+    );
 }
