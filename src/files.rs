@@ -273,7 +273,7 @@ mod tests {
         let input = dir.path().join("scene.toml");
         std::fs::write(&input, "").unwrap();
         let again = dir.path().join(".").join("scene.toml");
-        assert!(check_output(&again, &[input.clone()]).is_err());
+        assert!(check_output(&again, std::slice::from_ref(&input)).is_err());
         assert!(check_output(dir.path(), &[]).is_err());
         assert!(check_output(&dir.path().join("missing/out.exr"), &[]).is_err());
         assert!(check_output(&dir.path().join("out.exr"), &[input]).is_ok());

@@ -582,7 +582,7 @@ impl Loader {
         let positions = &self.geometry.positions[first..];
         match positions
             .iter()
-            .position(|p| !(p.abs().max_element() <= MAX_COORDINATE))
+            .position(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)
         {
             Some(k) => Err(SceneError::Invalid {
                 file: obj_path.to_path_buf(),
