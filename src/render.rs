@@ -274,7 +274,17 @@ impl RenderJob<'_> {
     /// says so, and where that fails too, names the last good snapshot: the render is never
     /// lost silently.
     fn write_final(&self, last_good: Option<PathBuf>) -> Result<(), RenderError> {
-        let Err(e) = self.write() else {
+        let Err(e) = exr::write_render(&self.output, &self.film, &self.metadata) else {
+            if self.png {
+                let preview = self.output.with_extension("png");
+                let mean = self.film.mean();
+                if let Err(e) =
+                    png::write_preview(&preview, &mean, self.film.width, self.film.height)
+                {
+                    // The preview is a convenience; the render itself is safe.
+                    eprintln!("warning: {e}; the render is written");
+                }
+            }
             return Ok(());
         };
         for path in self.written_paths() {
