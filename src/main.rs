@@ -130,6 +130,9 @@ struct RenderArgs {
     /// Clamp Phong materials with kd + ks > 1 instead of rejecting the scene.
     #[arg(long)]
     lenient: bool,
+    /// The memory the render may use, e.g. 8G (default: what the machine has available).
+    #[arg(long, value_parser = vmerge::memory::parse_size)]
+    memory_limit: Option<u64>,
     #[command(flatten)]
     preview: PreviewArg,
     #[command(flatten)]
@@ -203,6 +206,9 @@ struct ContinueArgs {
     snapshot: Option<Duration>,
     #[arg(long)]
     no_png: bool,
+    /// The memory the render may use, e.g. 8G (default: what the machine has available).
+    #[arg(long, value_parser = vmerge::memory::parse_size)]
+    memory_limit: Option<u64>,
     #[command(flatten)]
     preview: PreviewArg,
 }
@@ -253,7 +259,7 @@ fn parse_duration(s: &str) -> Result<Duration, String> {
     if !(seconds.is_finite() && seconds >= 0.0) {
         return Err(format!("'{s}' is not a non-negative duration"));
     }
-    Ok(Duration::from_secs_f64(seconds))
+    Duration::try_from_secs_f64(seconds).map_err(|_| format!("'{s}' is too long a duration"))
 }
 
 fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
@@ -349,6 +355,7 @@ fn run(cli: Cli) -> Result<()> {
 
 fn set_threads(threads: Option<usize>) -> Result<()> {
     if let Some(n) = threads {
+        vmerge::options::validate_threads(n)?;
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global()
@@ -358,6 +365,7 @@ fn set_threads(threads: Option<usize>) -> Result<()> {
 }
 
 fn render(args: RenderArgs) -> Result<()> {
+    vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
     let t = args.technique_options;
     let options = RenderOptions {
@@ -389,6 +397,7 @@ fn render(args: RenderArgs) -> Result<()> {
         snapshot_every: args.snapshot,
         reference: args.reference,
         traces: args.traces,
+        memory_limit: args.memory_limit,
     };
     let stop = StopAfter {
         iterations: args.iterations,
@@ -398,21 +407,32 @@ fn render(args: RenderArgs) -> Result<()> {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
     // Checked again by the library; here before the scene loads, so a mistake costs nothing.
-    setup.options.validate()?;
+    setup.check()?;
     let scene = setup.load_scene()?;
     let job = setup.job(&scene)?;
     run_job(job, stop, args.preview.preview)
 }
 
 fn resume(args: ContinueArgs) -> Result<()> {
+    vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
     let (film, metadata) = vmerge::film::exr::read_render(&args.input)?;
     let scene = vmerge::render::load_for_continue(&metadata, args.accel, args.force)?;
     let output = args.output.unwrap_or(args.input);
-    let job =
-        vmerge::render::continued_job(&scene, film, metadata, output, !args.no_png, args.snapshot)?;
+    let job = vmerge::render::continued_job(
+        &scene,
+        film,
+        metadata,
+        output,
+        !args.no_png,
+        args.snapshot,
+        args.memory_limit,
+    )?;
     let stop = StopAfter {
-        iterations: args.iterations.map(|n| job.film.iterations + n),
+        // The library refuses a total beyond its limit, which saturating keeps above it.
+        iterations: args
+            .iterations
+            .map(|n| job.film.iterations.saturating_add(n)),
         time: args.time,
     };
     if stop.iterations.is_none() && stop.time.is_none() {
@@ -516,11 +536,17 @@ fn is_input_error(e: &anyhow::Error) -> bool {
         } else if let Some(r) = cause.downcast_ref::<RenderError>() {
             match r {
                 RenderError::Film(f) => film(f),
+                // The system failed to take the image, not the user's input.
+                RenderError::WrittenElsewhere { .. } | RenderError::Lost { .. } => false,
                 _ => true,
             }
         } else {
             cause.downcast_ref::<vmerge::scene::SceneError>().is_some()
                 || cause.downcast_ref::<OptionError>().is_some()
+                || cause.downcast_ref::<vmerge::files::FileError>().is_some()
+                || cause
+                    .downcast_ref::<vmerge::memory::MemoryError>()
+                    .is_some()
         }
     })
 }
