@@ -130,6 +130,9 @@ struct TechniqueArgs {
     /// Vertex connection only (vcm).
     #[arg(long)]
     no_vm: bool,
+    /// Render every triangle flat, ignoring the meshes' vertex normals.
+    #[arg(long)]
+    no_shading_normals: bool,
     /// bpt: render only the technique with S light and T eye vertices (T counts the camera).
     #[arg(long, value_name = "S,T", value_parser = parse_strategy)]
     strategy: Option<[u32; 2]>,
@@ -304,6 +307,7 @@ fn render(args: RenderArgs) -> Result<()> {
         unweighted: t.unweighted,
         upg_packet: t.upg_packet,
         upg_max_trials: t.upg_max_trials,
+        no_shading_normals: t.no_shading_normals,
     };
     options.validate()?;
     let setup = vmerge::render::NewRender {

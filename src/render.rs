@@ -69,6 +69,10 @@ pub struct RenderOptions {
     /// `upg`, `upg-camera`: Bernoulli trials after which a merge is dropped.
     #[serde(default = "default_upg_max_trials")]
     pub upg_max_trials: u32,
+    /// Render every triangle flat, ignoring the meshes' vertex normals (applied when the scene
+    /// is loaded).
+    #[serde(default)]
+    pub no_shading_normals: bool,
 }
 
 fn default_upg_packet() -> u32 {
@@ -122,6 +126,7 @@ impl Default for RenderOptions {
             unweighted: false,
             upg_packet: default_upg_packet(),
             upg_max_trials: default_upg_max_trials(),
+            no_shading_normals: false,
         }
     }
 }
@@ -345,6 +350,7 @@ impl NewRender {
             &LoadOptions {
                 accel: self.accel,
                 lenient: self.lenient,
+                shading_normals: !self.options.no_shading_normals,
             },
         )
     }
@@ -401,6 +407,7 @@ pub fn load_for_continue(
         &LoadOptions {
             accel,
             lenient: false,
+            shading_normals: !metadata.options.no_shading_normals,
         },
     )?;
     if scene.source_hash != metadata.scene_hash && !force {

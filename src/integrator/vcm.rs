@@ -26,13 +26,13 @@ use super::upg::acceptance::{
 };
 use super::{Integrator, IterationStats, RenderContext, Technique, UpgCounters};
 use crate::accel::Ray;
-use crate::bsdf::{Bsdf, TransportMode};
+use crate::bsdf::{Bsdf, Normals, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::hashgrid::HashGrid;
 use crate::sampling::{Rng, Stream};
 use crate::scene::{Scene, SurfaceHit};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// Light paths traced by one parallel task. Fixed, so results do not depend on threads.
@@ -102,12 +102,15 @@ impl Modes {
     }
 }
 
-/// A stored light sub-path vertex: everything a connection or a merge needs (68 bytes).
+/// A stored light sub-path vertex: everything a connection or a merge needs (88 bytes).
 #[derive(Clone, Copy, Debug)]
 pub struct LightVertex {
     pub position: Vec3,
     /// Geometric normal.
     pub ng: Vec3,
+    /// Shading normal and texture coordinates, for the BSDF there.
+    pub ns: Vec3,
+    pub uv: Vec2,
     /// Unit direction back towards the previous vertex of the light sub-path.
     pub wo: Vec3,
     pub throughput: Rgb,
@@ -331,8 +334,7 @@ impl<'a> VertexCm<'a> {
             };
             let dir = state.ray.dir.normalize();
             self.arrive(w, &mut state, &hit, true);
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Importance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Importance) else {
                 break;
             };
             w.drop_pending(&mut state.mis, !bsdf.is_delta());
@@ -341,6 +343,8 @@ impl<'a> VertexCm<'a> {
                     vertices.push(LightVertex {
                         position: hit.position,
                         ng: hit.ng,
+                        ns: hit.ns,
+                        uv: hit.uv,
                         wo: -dir,
                         throughput: state.throughput,
                         material: hit.material,
@@ -489,8 +493,7 @@ impl<'a> VertexCm<'a> {
         lv: &LightVertex,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let Some(light_bsdf) = self.bsdf_at(lv.material, lv.ng, lv.wo, TransportMode::Importance)
-        else {
+        let Some(light_bsdf) = self.vertex_bsdf(lv) else {
             return Rgb::BLACK;
         };
         let Some(c) = Connection::new(bsdf, hit.position, &light_bsdf, lv.position) else {
@@ -593,8 +596,7 @@ impl<'a> VertexCm<'a> {
             if q.path_length + 1 + state.path_length > max_length {
                 return;
             }
-            let Some(q_bsdf) = self.bsdf_at(q.material, q.ng, q.wo, TransportMode::Importance)
-            else {
+            let Some(q_bsdf) = self.vertex_bsdf(q) else {
                 return;
             };
             let Some(link) = self.link(
@@ -644,12 +646,7 @@ impl<'a> VertexCm<'a> {
             if photon.path_length + 1 + prev.path_length > max_length {
                 return;
             }
-            let Some(p_bsdf) = self.bsdf_at(
-                photon.material,
-                photon.ng,
-                photon.wo,
-                TransportMode::Importance,
-            ) else {
+            let Some(p_bsdf) = self.vertex_bsdf(photon) else {
                 return;
             };
             let Some(link) = self.link(
@@ -689,8 +686,11 @@ impl<'a> VertexCm<'a> {
         self.estimate_merges(tentative, stats)
     }
 
-    fn bsdf_at(&self, material: u32, ng: Vec3, wo: Vec3, mode: TransportMode) -> Option<Bsdf<'_>> {
-        Bsdf::new(&self.scene().material(material).kind, ng, wo, mode)
+    /// The BSDF at a stored light vertex, for importance.
+    fn vertex_bsdf(&self, v: &LightVertex) -> Option<Bsdf<'_>> {
+        let normals = Normals { ng: v.ng, ns: v.ns };
+        self.scene()
+            .bsdf(v.material, normals, v.uv, v.wo, TransportMode::Importance)
     }
 
     /// The probability that Russian roulette let a sub-path go on from a vertex.
@@ -794,8 +794,7 @@ impl<'a> VertexCm<'a> {
             if self.modes.light_trace || state.path_length >= max_length {
                 break;
             }
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Radiance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Radiance) else {
                 break;
             };
             w.drop_pending(&mut state.mis, !bsdf.is_delta());
