@@ -78,7 +78,8 @@ impl EnvLight {
         let v = l.y.clamp(-1.0, 1.0).acos() / PI;
         let x = ((u * width as f32) as u32).min(width - 1);
         let y = ((v * height as f32) as u32).min(height - 1);
-        let sin_theta = (1.0 - l.y * l.y).max(0.0).sqrt();
+        // From x and z, not 1 - y^2, which rounds to zero near the poles.
+        let sin_theta = (l.x * l.x + l.z * l.z).sqrt();
         (x, y, sin_theta)
     }
 

@@ -41,13 +41,28 @@ impl Texture {
         let s = uv.x * w - 0.5;
         let t = (1.0 - uv.y) * h - 0.5;
         let (s0, t0) = (s.floor(), t.floor());
-        let (fs, ft) = (s - s0, t - t0);
+        let (fs, ft) = (snap(s - s0), snap(t - t0));
         let wrap = |i: f32, n: u32| (i as i64).rem_euclid(n as i64) as u32;
         let (x0, y0) = (wrap(s0, self.width), wrap(t0, self.height));
         let (x1, y1) = ((x0 + 1) % self.width, (y0 + 1) % self.height);
         let top = self.texel(x0, y0) * (1.0 - fs) + self.texel(x1, y0) * fs;
         let bottom = self.texel(x0, y1) * (1.0 - fs) + self.texel(x1, y1) * fs;
         top * (1.0 - ft) + bottom * ft
+    }
+}
+
+/// Interpolation weights this close to a texel centre are that centre: an f32 uv of a centre
+/// lands up to a few 1e-7 texels off it (its own rounding), which would otherwise mix in a
+/// neighbour; 1e-4 of a texel is far below what a filter of one texel's width resolves.
+const SNAP: f32 = 1e-4;
+
+fn snap(f: f32) -> f32 {
+    if f < SNAP {
+        0.0
+    } else if f > 1.0 - SNAP {
+        1.0
+    } else {
+        f
     }
 }
 
