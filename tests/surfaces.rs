@@ -492,3 +492,51 @@ fn textures_are_shared_and_decoded_from_srgb() {
         "{light:?}"
     );
 }
+
+/// Every supported format decodes to the same linear texels: 8-bit PNG, TGA (and JPEG, lossy)
+/// from sRGB, PFM and EXR as stored; an unknown extension is an error that names it.
+#[test]
+fn textures_decode_png_tga_jpeg_pfm_and_exr() {
+    use vmerge::scene::texture::{read, srgb_to_linear};
+    let dir = tempfile::tempdir().unwrap();
+    let (w, h) = (4u32, 3u32);
+    let codes: Vec<[u8; 3]> = (0..w * h)
+        .map(|i| [(i * 20) as u8, (255 - i * 15) as u8, (i * 7 + 100) as u8])
+        .collect();
+    let linear: Vec<Rgb> = codes
+        .iter()
+        .map(|c| {
+            Rgb::new(
+                srgb_to_linear(c[0] as f32 / 255.0),
+                srgb_to_linear(c[1] as f32 / 255.0),
+                srgb_to_linear(c[2] as f32 / 255.0),
+            )
+        })
+        .collect();
+    let buffer = image::RgbImage::from_fn(w, h, |x, y| image::Rgb(codes[(y * w + x) as usize]));
+    for (ext, tolerance) in [("png", 1e-6), ("tga", 1e-6), ("jpg", 0.15)] {
+        let path = dir.path().join(format!("t.{ext}"));
+        buffer.save(&path).unwrap();
+        let t = read(&path).unwrap();
+        assert_eq!((t.width, t.height), (w, h), "{ext}");
+        for (a, b) in t.texels.iter().zip(&linear) {
+            assert!(close(*a, *b, tolerance), "{ext}: {a:?} vs {b:?}");
+        }
+    }
+    let float = Texture::new(w, h, linear.iter().map(|c| *c * 7.5).collect()).unwrap();
+    std::fs::write(dir.path().join("t.pfm"), write_pfm(&float)).unwrap();
+    assert_eq!(read(&dir.path().join("t.pfm")).unwrap(), float);
+    let exr_path = dir.path().join("t.exr");
+    vmerge::film::exr::write_image(
+        &exr_path,
+        &vmerge::film::exr::Image {
+            width: w,
+            height: h,
+            pixels: float.texels.clone(),
+        },
+    )
+    .unwrap();
+    assert_eq!(read(&exr_path).unwrap(), float);
+    let err = read(&dir.path().join("t.bmp")).unwrap_err();
+    assert!(err.contains("bmp"), "{err}");
+}

@@ -84,7 +84,7 @@ pub struct Distribution2D {
 impl Distribution2D {
     /// `weights` row by row; `None` when they do not sum to a positive finite number.
     pub fn new(width: usize, weights: &[f32]) -> Option<Self> {
-        if width == 0 || weights.len() % width != 0 {
+        if width == 0 || !weights.len().is_multiple_of(width) {
             return None;
         }
         let rows: Vec<Option<Distribution1D>> = weights

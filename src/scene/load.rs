@@ -857,13 +857,13 @@ impl Loader {
         let mtl_dir = mtl_file.parent().unwrap_or(Path::new("")).to_path_buf();
         let map = |t: &Option<String>| t.as_ref().map(|s| PathBuf::from(texture_file_name(s)));
         let kd = self.texture(
-            &mtl_file,
+            mtl_file,
             &format!("material '{}': map_Kd", m.name),
             &mtl_dir,
             &map(&m.diffuse_texture),
         )?;
         let ks = self.texture(
-            &mtl_file,
+            mtl_file,
             &format!("material '{}': map_Ks", m.name),
             &mtl_dir,
             &map(&m.specular_texture),

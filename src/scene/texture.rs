@@ -90,11 +90,7 @@ pub fn read(path: &Path) -> Result<Texture, String> {
             let bytes = std::fs::read(path).map_err(|e| e.to_string())?;
             parse_pfm(&bytes)
         }
-        "exr" => {
-            let image = crate::film::exr::read_image(path).map_err(|e| e.to_string())?;
-            Texture::new(image.width, image.height, image.pixels)
-                .ok_or_else(|| "the image is empty".to_string())
-        }
+        "exr" => read_exr(path),
         _ => Err(format!(
             "unsupported image type '{ext}' (png, jpg, tga, hdr, pfm, exr)"
         )),
@@ -133,6 +129,29 @@ fn read_hdr(path: &Path) -> Result<Texture, String> {
     let rgb = decode(path)?.to_rgb32f();
     let texels = rgb.pixels().map(|p| Rgb::new(p[0], p[1], p[2])).collect();
     Texture::new(rgb.width(), rgb.height(), texels).ok_or_else(|| "the image is empty".into())
+}
+
+/// The first RGB layer of an EXR (a missing alpha channel is fine; it is not used).
+fn read_exr(path: &Path) -> Result<Texture, String> {
+    let image = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |resolution, _| {
+            (
+                resolution.width(),
+                vec![Rgb::BLACK; resolution.width() * resolution.height()],
+            )
+        },
+        |(width, texels): &mut (usize, Vec<Rgb>), position, (r, g, b, _): (f32, f32, f32, f32)| {
+            texels[position.y() * *width + position.x()] = Rgb::new(r, g, b);
+        },
+    )
+    .map_err(|e| e.to_string())?;
+    let (width, texels) = image.layer_data.channel_data.pixels;
+    let height = texels.len() / width.max(1);
+    if texels.iter().any(|t| !t.is_finite()) {
+        return Err("the image holds a NaN or infinite value".into());
+    }
+    Texture::new(width as u32, height as u32, texels).ok_or_else(|| "the image is empty".into())
 }
 
 /// Portable float map: "PF" (RGB) or "Pf" (grey), width and height, a scale whose sign is the
