@@ -129,6 +129,9 @@ fn environment_sampling_matches_its_pdf() {
             expected[(y / 2) * bw + x / 2] += env.pdf_w(dirw) as f64 * texel_area;
         }
     }
+    // Memory: an f32 weight and an f64 CDF entry per texel (one more per row), the marginal.
+    let distribution = 12 * w * h + 8 * h + 12 * h + 8;
+    assert_eq!(scene.lights.env_distribution_bytes(), distribution);
     let total: f64 = expected.iter().sum();
     assert!(
         (total - 1.0).abs() < 1e-4,

@@ -376,13 +376,10 @@ impl<'a> Bsdf<'a> {
         albedo.max_component().min(1.0)
     }
 
-    /// The material's kind, with its constant colours (the albedos here are [`Bsdf::albedo`]).
+    /// The material's kind, with its constant colours (the albedos here may come from
+    /// textures).
     pub fn kind(&self) -> &MaterialKind {
         self.kind
-    }
-
-    pub fn albedo(&self) -> Albedo {
-        self.albedo
     }
 
     /// The shading frame: `z` is the shading normal (the geometric one on flat surfaces), on

@@ -102,7 +102,7 @@ impl Modes {
     }
 }
 
-/// A stored light sub-path vertex: everything a connection or a merge needs (88 bytes).
+/// A stored light sub-path vertex: everything a connection or a merge needs (100 bytes).
 #[derive(Clone, Copy, Debug)]
 pub struct LightVertex {
     pub position: Vec3,

@@ -42,9 +42,11 @@ impl Texture {
         let t = (1.0 - uv.y) * h - 0.5;
         let (s0, t0) = (s.floor(), t.floor());
         let (fs, ft) = (snap(s - s0), snap(t - t0));
-        let wrap = |i: f32, n: u32| (i as i64).rem_euclid(n as i64) as u32;
-        let (x0, y0) = (wrap(s0, self.width), wrap(t0, self.height));
-        let (x1, y1) = ((x0 + 1) % self.width, (y0 + 1) % self.height);
+        // Repeat wrap without integer division (a lookup is mostly waiting for memory already).
+        let wrap = |i: f32, n: f32| ((i - (i / n).floor() * n) as u32).min(n as u32 - 1);
+        let next = |i: u32, n: u32| if i + 1 == n { 0 } else { i + 1 };
+        let (x0, y0) = (wrap(s0, w), wrap(t0, h));
+        let (x1, y1) = (next(x0, self.width), next(y0, self.height));
         let top = self.texel(x0, y0) * (1.0 - fs) + self.texel(x1, y0) * fs;
         let bottom = self.texel(x0, y1) * (1.0 - fs) + self.texel(x1, y1) * fs;
         top * (1.0 - ft) + bottom * ft
