@@ -162,6 +162,9 @@ struct TechniqueArgs {
     /// Vertex connection only (vcm).
     #[arg(long)]
     no_vm: bool,
+    /// Render every triangle flat, ignoring the meshes' vertex normals.
+    #[arg(long)]
+    no_shading_normals: bool,
     /// bpt: render only the technique with S light and T eye vertices (T counts the camera).
     #[arg(long, value_name = "S,T", value_parser = parse_strategy)]
     strategy: Option<[u32; 2]>,
@@ -386,6 +389,7 @@ fn render(args: RenderArgs) -> Result<()> {
         upg_max_trials: t.upg_max_trials,
         density_mis: t.density_mis,
         density_map_iterations: t.density_map_iterations,
+        no_shading_normals: t.no_shading_normals,
     };
     let setup = vmerge::render::NewRender {
         scene: args.scene,

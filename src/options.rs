@@ -160,6 +160,10 @@ pub struct RenderOptions {
     /// sec. 5.1), so the weights are deterministic.
     #[serde(default = "default_density_map_iterations")]
     pub density_map_iterations: u32,
+    /// Render every triangle flat, ignoring the meshes' vertex normals (applied when the scene
+    /// is loaded).
+    #[serde(default)]
+    pub no_shading_normals: bool,
 }
 
 fn default_density_map_iterations() -> u32 {
@@ -194,6 +198,7 @@ impl RenderOptions {
         upg_max_trials: 10_000,
         density_mis: None,
         density_map_iterations: 50,
+        no_shading_normals: false,
     };
 
     /// The radius-shrinking exponent a render uses: the given one, 0.75 for the techniques
@@ -359,6 +364,13 @@ pub static RULES: &[OptionRule] = &[
         is_set: |o| o.upg_max_trials != RenderOptions::DEFAULT.upg_max_trials,
         invalid: |o| (o.upg_max_trials == 0).then(|| "0".to_string()),
         expected: "at least 1 trial",
+    },
+    OptionRule {
+        name: "no_shading_normals",
+        takes: every,
+        is_set: |o| o.no_shading_normals,
+        invalid: never_invalid,
+        expected: "",
     },
     OptionRule {
         name: "density_mis",

@@ -18,12 +18,12 @@ use super::connection::{Connection, LightSample};
 use super::mis::{self, BptStep, BptVertex, Power};
 use super::{Integrator, IterationStats, RenderContext};
 use crate::accel::Ray;
-use crate::bsdf::{Bsdf, TransportMode};
+use crate::bsdf::{Bsdf, Normals, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::sampling::{Rng, Stream};
 use crate::scene::{Scene, SurfaceHit};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// Pixels traced by one parallel task. Fixed, so results do not depend on threads.
@@ -41,6 +41,9 @@ struct Chunk {
 struct LightVertex {
     position: Vec3,
     ng: Vec3,
+    /// Shading normal and texture coordinates, for the BSDF there.
+    ns: Vec3,
+    uv: Vec2,
     /// Unit direction back towards the previous vertex.
     wo: Vec3,
     throughput: Rgb,
@@ -236,14 +239,15 @@ impl<'a> Bpt<'a> {
             };
             state.arrive(self.power, Some(&hit));
             let wo = -state.ray.dir.normalize();
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, wo, TransportMode::Importance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, wo, TransportMode::Importance) else {
                 break;
             };
             if !bsdf.is_delta() {
                 let vertex = LightVertex {
                     position: hit.position,
                     ng: hit.ng,
+                    ns: hit.ns,
+                    uv: hit.uv,
                     wo,
                     throughput: state.throughput,
                     material: hit.material,
@@ -362,8 +366,17 @@ impl<'a> Bpt<'a> {
         lv: &LightVertex,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let material = &self.scene().material(lv.material).kind;
-        let Some(light_bsdf) = Bsdf::new(material, lv.ng, lv.wo, TransportMode::Importance) else {
+        let normals = Normals {
+            ng: lv.ng,
+            ns: lv.ns,
+        };
+        let Some(light_bsdf) = self.scene().bsdf(
+            lv.material,
+            normals,
+            lv.uv,
+            lv.wo,
+            TransportMode::Importance,
+        ) else {
             return Rgb::BLACK;
         };
         let Some(c) = Connection::new(bsdf, hit.position, &light_bsdf, lv.position) else {
@@ -425,8 +438,7 @@ impl<'a> Bpt<'a> {
                 break;
             }
             let wo = -state.ray.dir.normalize();
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, wo, TransportMode::Radiance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, wo, TransportMode::Radiance) else {
                 break;
             };
             if !bsdf.is_delta() {

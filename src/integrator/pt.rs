@@ -59,8 +59,7 @@ impl<'a> PathTracer<'a> {
             if length >= max_length {
                 break;
             }
-            let material = &scene.material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, -ray.dir, TransportMode::Radiance) else {
+            let Some(bsdf) = scene.bsdf_at(&hit, -ray.dir, TransportMode::Radiance) else {
                 break;
             };
             if !bsdf.is_delta() {

@@ -6,11 +6,11 @@ use super::mis::{VcmVertex, VcmWeights};
 use super::upg::Deferred;
 use super::IterationStats;
 use crate::accel::Ray;
-use crate::bsdf::{Bsdf, TransportMode};
+use crate::bsdf::{Bsdf, Normals, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::scene::{Scene, SurfaceHit};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// A stored light sub-path vertex: everything a connection or a merge needs.
 #[derive(Clone, Copy, Debug)]
@@ -18,6 +18,9 @@ pub struct LightVertex {
     pub position: Vec3,
     /// Geometric normal.
     pub ng: Vec3,
+    /// Shading normal and texture coordinates, for the BSDF there.
+    pub ns: Vec3,
+    pub uv: Vec2,
     /// Unit direction back towards the previous vertex of the light sub-path.
     pub wo: Vec3,
     pub throughput: Rgb,
@@ -37,8 +40,17 @@ pub struct LightVertex {
 impl LightVertex {
     /// The vertex's BSDF, as the light sub-path scattered there.
     pub fn bsdf<'s>(&self, scene: &'s Scene) -> Option<Bsdf<'s>> {
-        let material = &scene.material(self.material).kind;
-        Bsdf::new(material, self.ng, self.wo, TransportMode::Importance)
+        let normals = Normals {
+            ng: self.ng,
+            ns: self.ns,
+        };
+        scene.bsdf(
+            self.material,
+            normals,
+            self.uv,
+            self.wo,
+            TransportMode::Importance,
+        )
     }
 
     /// The MIS quantities once a use of the vertex fixes `rev_pdf_w`, the pdf with which it

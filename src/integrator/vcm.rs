@@ -309,8 +309,7 @@ impl<'a> VertexCm<'a> {
             };
             let dir = state.ray.dir.normalize();
             self.arrive(w, &mut state, &hit, true);
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Importance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Importance) else {
                 break;
             };
             state.deferred.keep_if(!bsdf.is_delta());
@@ -321,6 +320,8 @@ impl<'a> VertexCm<'a> {
                     chunk.vertices.push(LightVertex {
                         position: hit.position,
                         ng: hit.ng,
+                        ns: hit.ns,
+                        uv: hit.uv,
                         wo: -dir,
                         throughput: state.throughput,
                         material: hit.material,
@@ -646,8 +647,7 @@ impl<'a> VertexCm<'a> {
             if self.modes.light_trace || state.path_length >= max_length {
                 break;
             }
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Radiance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Radiance) else {
                 break;
             };
             state.deferred.keep_if(!bsdf.is_delta());
