@@ -146,6 +146,12 @@ struct TechniqueArgs {
     /// upg, upg-camera: trials after which a merge is dropped (and counted).
     #[arg(long, default_value_t = DEFAULT.upg_max_trials)]
     upg_max_trials: u32,
+    /// Light sub-paths per iteration, n_VM (default: one per pixel).
+    #[arg(long)]
+    light_paths: Option<u32>,
+    /// Leave out paths of fewer segments (3 drops direct light).
+    #[arg(long, default_value_t = DEFAULT.min_path_length)]
+    min_path_length: u32,
 }
 
 #[derive(Args)]
@@ -327,6 +333,8 @@ fn render(args: RenderArgs) -> Result<()> {
         unweighted: t.unweighted,
         upg_packet: t.upg_packet,
         upg_max_trials: t.upg_max_trials,
+        light_paths: t.light_paths,
+        min_path_length: t.min_path_length,
     };
     let setup = vmerge::render::NewRender {
         scene: args.scene,

@@ -281,6 +281,9 @@ pub struct VcmWeights {
     pub vm_normalization: f32,
     /// UPG's clamped acceptance (000 eq. 2.80): mis(pi r^2) and mis(n_VM); `None` for VCM.
     clamp: Option<(f32, f32)>,
+    /// Connections are techniques: false for merge-only UPG, whose d^VC then sums the merges'
+    /// eta_i alone.
+    connections: bool,
 }
 
 /// The geometry factors of arriving at a vertex, mis(d^2) and 1 / mis(|cos|), for whatever
@@ -304,6 +307,7 @@ impl VcmWeights {
             vc_factor: if both { power.mis(1.0 / eta_vcm) } else { 0.0 },
             vm_normalization: 1.0 / eta_vcm,
             clamp: None,
+            connections: true,
         }
     }
 
@@ -313,6 +317,26 @@ impl VcmWeights {
         VcmWeights {
             clamp: Some((power.mis(area), power.mis(light_paths))),
             ..VcmWeights::new(power, radius, light_paths, true, true)
+        }
+    }
+
+    /// Merge-only UPG (000 sec. 5.2): the clamped merges weighed against each other alone. A
+    /// connection's term (d^VCM in d^VC and in a merge's weight) and the light origin's (the
+    /// eye sub-path hitting the light) drop out; the merges' eta_i stay.
+    pub fn clamped_merges_only(power: Power, radius: f32, light_paths: f32) -> Self {
+        VcmWeights {
+            connections: false,
+            ..VcmWeights::clamped(power, radius, light_paths)
+        }
+    }
+
+    /// d^VCM as a connection's term in d^VC and in a merge's weight: 0 without connections.
+    #[inline]
+    fn connection_term(&self, d_vcm: f32) -> f32 {
+        if self.connections {
+            d_vcm
+        } else {
+            0.0
         }
     }
 
@@ -349,7 +373,7 @@ impl VcmWeights {
         delta: bool,
     ) -> VcmVertex {
         // 001 eq. (32); a delta light cannot be hit, so no technique weighs against it (sec. 5.2).
-        let d_vc = if delta {
+        let d_vc = if delta || !self.connections {
             0.0
         } else {
             self.mis(cos_at_light / emission_pdf_w)
@@ -418,7 +442,7 @@ impl VcmWeights {
         } else {
             (0.0, 0.0)
         };
-        v.d_vc = ratio * (v.d_vc * self.mis(rev_pdf_w) + v.d_vcm + eta); // 001 eq. (35)
+        v.d_vc = ratio * (v.d_vc * self.mis(rev_pdf_w) + self.connection_term(v.d_vcm) + eta); // 001 eq. (35)
         v.d_vm = ratio * (v.d_vm * self.mis(rev_pdf_w) + v.d_vcm * self.vc_factor + here); // 001 eq. (36)
         v.d_vcm = self.mis(1.0 / pdf_w); // 001 eq. (34)
         ratio
@@ -495,8 +519,8 @@ impl VcmWeights {
     ) -> f32 {
         let (w_light, w_camera) = if self.vm_factor > 0.0 {
             (
-                (light.d_vcm + light.d_vc * self.mis(pdf_w)) / eta, // 001 eq. (38)
-                (eye.d_vcm + eye.d_vc * self.mis(rev_pdf_w)) / eta, // 001 eq. (39)
+                (self.connection_term(light.d_vcm) + light.d_vc * self.mis(pdf_w)) / eta, // 001 eq. (38)
+                (self.connection_term(eye.d_vcm) + eye.d_vc * self.mis(rev_pdf_w)) / eta, // 001 eq. (39)
             )
         } else {
             (light.d_vm * self.mis(pdf_w), eye.d_vm * self.mis(rev_pdf_w))
