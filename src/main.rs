@@ -61,7 +61,12 @@ enum Command {
         /// One chart per trace window.
         #[arg(long)]
         traces: bool,
+        /// The error drawn: mean absolute (mae) or RMS (rmse).
+        #[arg(long, value_parser = metric_parser(), default_value = "rmse")]
+        metric: Metric,
     },
+    /// Run a plan of renders (or print its cells' commands), show its state, write its report.
+    Batch(BatchArgs),
 }
 
 #[derive(Args)]
@@ -300,7 +305,9 @@ fn run(cli: Cli) -> Result<()> {
             output,
             inputs,
             traces,
-        } => Ok(tools::plot(&output, &inputs, traces)?),
+            metric,
+        } => Ok(tools::plot(&output, &inputs, traces, metric)?),
+        Command::Batch(args) => batch(args),
     }
 }
 
@@ -449,9 +456,100 @@ fn is_input_error(e: &anyhow::Error) -> bool {
                 RenderError::Film(f) => film(f),
                 _ => true,
             }
+        } else if let Some(b) = cause.downcast_ref::<vmerge::tools::batch::BatchError>() {
+            b.is_input()
         } else {
             cause.downcast_ref::<vmerge::scene::SceneError>().is_some()
                 || cause.downcast_ref::<OptionError>().is_some()
         }
     })
+}
+
+// `vmerge batch`: plans of renders (src/tools/batch).
+
+use vmerge::tools::batch::{self, Plan};
+use vmerge::tools::Metric;
+
+#[derive(Args)]
+#[command(args_conflicts_with_subcommands = true)]
+struct BatchArgs {
+    #[command(subcommand)]
+    command: Option<BatchCommand>,
+    /// The plan (TOML): run every cell that needs it, references first.
+    plan: Option<PathBuf>,
+    /// List what would run, without running it.
+    #[arg(long)]
+    dry_run: bool,
+    /// Print one shell command per cell that can run now (for parallel -j N or xargs -P N);
+    /// run them, then ask again until nothing is printed.
+    #[arg(long, conflicts_with_all = ["dry_run", "slurm"])]
+    jobs: bool,
+    /// Write an sbatch --array script with one array task per cell that can run now.
+    #[arg(long, value_name = "FILE", conflicts_with = "dry_run")]
+    slurm: Option<PathBuf>,
+    #[arg(long, value_parser = accel_parser(), default_value = AccelKind::default_kind().name())]
+    accel: AccelKind,
+}
+
+#[derive(Subcommand)]
+enum BatchCommand {
+    /// Show each cell: done, partial, missing or stale.
+    Status { plan: PathBuf },
+    /// Write OUTPUT/report/index.html (thumbnails, tables, charts) from the cells that exist.
+    Report { plan: PathBuf },
+}
+
+fn metric_parser() -> impl TypedValueParser<Value = Metric> {
+    PossibleValuesParser::new(Metric::ALL.map(|m| m.name()))
+        .try_map(|name| Metric::from_name(&name).ok_or("no such metric"))
+}
+
+fn batch(args: BatchArgs) -> Result<()> {
+    let program = std::env::current_exe().context("finding the vmerge executable")?;
+    match (args.command, args.plan) {
+        (Some(BatchCommand::Status { plan }), _) => {
+            print!("{}", batch::status(&Plan::load(&plan)?))
+        }
+        (Some(BatchCommand::Report { plan }), _) => {
+            let index = batch::report(&Plan::load(&plan)?)?;
+            eprintln!("wrote {}", index.display());
+        }
+        (None, None) => anyhow::bail!("say which plan: vmerge batch PLAN.toml"),
+        (None, Some(file)) => {
+            let plan = Plan::load(&file)?;
+            if args.dry_run {
+                print!("{}", batch::dry_run(&plan));
+            } else if args.jobs {
+                let (lines, later) = batch::jobs(&plan, &program)?;
+                for line in &lines {
+                    println!("{line}");
+                }
+                if later > 0 {
+                    eprintln!("{later} more cells wait for these; ask again once they are done");
+                }
+            } else if let Some(script) = args.slurm {
+                let (tasks, later) = batch::slurm(&plan, &program, &script)?;
+                eprintln!("wrote {} ({tasks} array tasks)", script.display());
+                if later > 0 {
+                    eprintln!("{later} more cells wait for these; write the script again once they are done");
+                }
+            } else {
+                set_threads(plan.threads)?;
+                let flag = vmerge::render::StopFlag::default();
+                let handler_flag = flag.clone();
+                ctrlc::set_handler(move || {
+                    // The first signal ends the current cell's iteration and writes it.
+                    if handler_flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
+                        std::process::exit(130);
+                    }
+                })
+                .context("installing the signal handler")?;
+                let mut bar = batch::ProgressBar::default();
+                let ran = batch::run(&plan, args.accel, &flag, &mut |e| bar.show(e))?;
+                bar.finish();
+                eprintln!("{ran} cells rendered");
+            }
+        }
+    }
+    Ok(())
 }
