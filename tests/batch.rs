@@ -133,8 +133,16 @@ fn modification_times(dir: &Path) -> BTreeMap<PathBuf, SystemTime> {
         .collect()
 }
 
-/// The table a report wrote as CSV: (radius, [(variant, value)]) rows and the best row.
-fn read_csv(path: &Path) -> (Vec<String>, Vec<(String, Vec<Option<f64>>)>, Vec<String>) {
+/// A report's table read back from CSV.
+struct CsvTable {
+    variants: Vec<String>,
+    /// (radius, one value per variant).
+    rows: Vec<(String, Vec<Option<f64>>)>,
+    /// Each variant's best radius.
+    best: Vec<String>,
+}
+
+fn read_csv(path: &Path) -> CsvTable {
     let text = std::fs::read_to_string(path).unwrap();
     let mut lines = text.lines();
     let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
@@ -149,7 +157,11 @@ fn read_csv(path: &Path) -> (Vec<String>, Vec<(String, Vec<Option<f64>>)>, Vec<S
             rows.push((fields[0].to_string(), values));
         }
     }
-    (header[1..].to_vec(), rows, best)
+    CsvTable {
+        variants: header[1..].to_vec(),
+        rows,
+        best,
+    }
 }
 
 /// The report's best-radius tables hold the final errors the cells' EXRs record, and mark
@@ -158,7 +170,11 @@ fn check_tables(results: &Path) {
     for s in SCENES {
         for (metric, pick) in [("mae", 0), ("rmse", 1)] {
             let csv = results.join(format!("report/tables/{s}.front.{metric}.csv"));
-            let (variants, rows, best) = read_csv(&csv);
+            let CsvTable {
+                variants,
+                rows,
+                best,
+            } = read_csv(&csv);
             assert_eq!(variants, TECHNIQUES);
             assert_eq!(rows.len(), RADII.len());
             for (c, t) in TECHNIQUES.iter().enumerate() {
@@ -393,10 +409,17 @@ radius = [0.05, 0.1]
         }
         run(&["batch", plan_arg, "--slurm", script.to_str().unwrap()]);
         let text = std::fs::read_to_string(&script).unwrap();
-        let syntax = Command::new("bash").arg("-n").arg(&script).status().unwrap();
+        let syntax = Command::new("bash")
+            .arg("-n")
+            .arg(&script)
+            .status()
+            .unwrap();
         assert!(syntax.success(), "bash -n: {text}");
         let n = jobs.lines().count();
-        assert!(text.contains(&format!("#SBATCH --array=0-{}\n", n - 1)), "{text}");
+        assert!(
+            text.contains(&format!("#SBATCH --array=0-{}\n", n - 1)),
+            "{text}"
+        );
         assert!(text.contains("#SBATCH --cpus-per-task=2\n"));
         let tasks = text.lines().filter(|l| l.contains(") exec ")).count();
         assert_eq!(tasks, n);
@@ -434,8 +457,14 @@ fn bad_plans_exit_2_and_name_the_entry() {
         scene("cornell-box")
     );
     let cases = [
-        ("[[group]]\ntechniques = [\"vcmx\"]\n", "[[group]] 1: techniques"),
-        ("[[group]]\ntechniques = [\"vcm\"]\ncolour = 3\n", "unknown key 'colour'"),
+        (
+            "[[group]]\ntechniques = [\"vcmx\"]\n",
+            "[[group]] 1: techniques",
+        ),
+        (
+            "[[group]]\ntechniques = [\"vcm\"]\ncolour = 3\n",
+            "unknown key 'colour'",
+        ),
         (
             "[[group]]\ntechniques = [\"vcm\"]\nradius = { from = 0.1, to = 0.01, steps = 3 }\n",
             "[[group]] 1: radius",

@@ -6,7 +6,7 @@ use vmerge::film::{exr as film_exr, ErrorSample, Film, Image, Metadata, TraceWin
 use vmerge::options::RenderOptions;
 use vmerge::options::Technique;
 use vmerge::sampling::Rng;
-use vmerge::tools;
+use vmerge::tools::{self, Metric};
 
 const W: u32 = 12;
 const H: u32 = 8;
