@@ -36,6 +36,11 @@ pub struct Plan {
     pub views: Vec<(String, String)>,
 }
 
+/// The first seed of a reference unless the plan gives one: far from the cells' seeds, since a
+/// cell and its reference with one seed would share their eye sub-paths' random numbers and
+/// the measured error would come out too low.
+pub const REFERENCE_SEED: u64 = 1 << 32;
+
 /// Keys that are not options, by the level that takes them.
 const TOP_KEYS: &[&str] = &[
     "output",
@@ -598,7 +603,7 @@ impl Plan {
         };
         let seed = match table.get("seed") {
             Some(v) => r.count(&format!("{entry}: seed"), v)?,
-            None => RenderOptions::DEFAULT.seed,
+            None => REFERENCE_SEED,
         };
         let base = format!("{}.{}.reference", view.scene, view.camera_name);
         let mut options = settings.options(r, &entry, technique, &[])?;
