@@ -471,7 +471,7 @@ use vmerge::tools::batch::{self, Plan};
 use vmerge::tools::Metric;
 
 #[derive(Args)]
-#[command(args_conflicts_with_subcommands = true)]
+#[command(args_conflicts_with_subcommands = true, arg_required_else_help = true)]
 struct BatchArgs {
     #[command(subcommand)]
     command: Option<BatchCommand>,
