@@ -111,11 +111,13 @@ impl SubPath {
 struct Filter {
     strategy: Option<(u32, u32)>,
     unweighted: bool,
+    /// Paths of fewer segments (s + t - 1) are left out.
+    min_length: u32,
 }
 
 impl Filter {
     fn allows(&self, s: u32, t: u32) -> bool {
-        self.strategy.is_none_or(|st| st == (s, t))
+        self.strategy.is_none_or(|st| st == (s, t)) && s + t > self.min_length
     }
 
     /// The light sub-path can be skipped when the one strategy shown does not use it.
@@ -147,6 +149,7 @@ impl<'a> Bpt<'a> {
             filter: Filter {
                 strategy: o.strategy.map(|[s, t]| (s, t)),
                 unweighted: o.unweighted,
+                min_length: o.min_path_length,
             },
             light_paths: ctx.camera.pixel_count() as f32,
             ctx,

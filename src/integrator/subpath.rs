@@ -144,8 +144,15 @@ impl LightPaths {
         }
     }
 
-    /// The light sub-path traced for `pixel`.
-    pub fn of_pixel(&self, pixel: usize) -> &[LightVertex] {
-        &self.vertices[self.path_ends[pixel]..self.path_ends[pixel + 1]]
+    /// The light sub-path the eye sub-path of `pixel` connects to: the one traced for it when
+    /// there is one per pixel, the paths taken in turn when there are fewer, and each pixel's own
+    /// when there are more (the rest are merged and splatted only). Every eye sub-path connects
+    /// to one light sub-path either way (n_VC = 1).
+    pub fn for_pixel(&self, pixel: usize) -> &[LightVertex] {
+        let path = pixel % (self.path_ends.len() - 1).max(1);
+        match self.path_ends.get(path..path + 2) {
+            Some(&[start, end]) => &self.vertices[start..end],
+            _ => &[],
+        }
     }
 }
