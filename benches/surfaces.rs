@@ -15,9 +15,10 @@ use std::time::Instant;
 use vmerge::accel::AccelKind;
 use vmerge::bsdf::Albedo;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext, Technique};
-use vmerge::render::RenderOptions;
-use vmerge::scene::{self, Camera, LoadOptions, MaterialTextures, MeshShading, Scene, Texture};
+use vmerge::integrator::{self, RenderContext};
+use vmerge::options::{RenderOptions, Technique};
+use vmerge::scene::{self, Camera, LoadOptions, MaterialTextures, MeshShading, Scene};
+use vmerge::texture::Texture;
 
 const SIZE: u32 = 256;
 const ROUNDS: usize = 7;

@@ -274,6 +274,7 @@ fn mutated_inputs_load_or_fail_cleanly() {
                             let options = LoadOptions {
                                 accel: AccelKind::Bvh,
                                 lenient: rng.below(2) == 0,
+                                shading_normals: true,
                             };
                             let scene = dir.join("scene.toml");
                             let result = catch_unwind(AssertUnwindSafe(|| {

@@ -116,8 +116,13 @@ fn pane_scene(accel: AccelKind) -> Scene {
                 emission: Rgb::WHITE,
             },
         ],
+        material_textures: vec![Default::default(); 2],
+        textures: Vec::new(),
+        shading: Default::default(),
         point_and_directional: Vec::new(),
         sky: None,
+        env_map: None,
+        inputs: Vec::new(),
         cameras: vec![CameraDesc {
             name: "pane".into(),
             position: Vec3::ZERO,
@@ -318,6 +323,7 @@ fn bulbs_case() -> Option<Scene> {
     let options = LoadOptions {
         accel: AccelKind::default_kind(),
         lenient: false,
+        shading_normals: true,
     };
     Some(scene::load(&path, &options).unwrap_or_else(|e| panic!("{e}")))
 }

@@ -659,7 +659,7 @@ fn check_scene(name: &str) -> (usize, usize) {
                         // Merge-only UPG (000 sec. 5.2): the merges of a path that has any
                         // share it among themselves.
                         let only = VcmWeights::clamped_merges_only(power, radius, setup.n());
-                        let (_, only_vm) = vcm_weights(&only, gather, path, &q);
+                        let (_, only_vm) = vcm_weights(&only, gather, path, &q, &[]);
                         let sum: f32 = only_vm.iter().sum();
                         let merges = only_vm.iter().filter(|&&m| m > 0.0).count();
                         assert!(

@@ -366,6 +366,7 @@ fn the_preview_closes_its_port_when_dropped() {
         snapshot_every: None,
         reference: None,
         traces: Vec::new(),
+        memory_limit: None,
     };
     let scene = setup.load_scene().unwrap();
     let mut job = setup.job(&scene).unwrap();

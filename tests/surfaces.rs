@@ -10,10 +10,11 @@ use glam::{Vec2, Vec3};
 use std::path::Path;
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
-use vmerge::integrator::Technique;
-use vmerge::render::{render_iterations, RenderOptions};
-use vmerge::scene::texture::{write_pfm, Texture};
+use vmerge::options::RenderOptions;
+use vmerge::options::Technique;
+use vmerge::render::render_iterations;
 use vmerge::scene::{self, LoadOptions, Scene, SceneError};
+use vmerge::texture::{write_pfm, Texture};
 
 fn view(technique: Technique, camera: &str) -> RenderOptions {
     RenderOptions {
@@ -500,7 +501,7 @@ fn textures_are_shared_and_decoded_from_srgb() {
 /// from sRGB, PFM and EXR as stored; an unknown extension is an error that names it.
 #[test]
 fn textures_decode_png_tga_jpeg_pfm_and_exr() {
-    use vmerge::scene::texture::{read, srgb_to_linear};
+    use vmerge::texture::{read, srgb_to_linear};
     let dir = tempfile::tempdir().unwrap();
     let (w, h) = (4u32, 3u32);
     let codes: Vec<[u8; 3]> = (0..w * h)
