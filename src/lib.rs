@@ -16,7 +16,6 @@ pub mod integrator;
 pub mod light;
 pub mod memory;
 pub mod options;
-pub mod preview;
 pub mod render;
 pub mod sampling;
 pub mod scene;
