@@ -12,6 +12,13 @@ pub enum SceneError {
     },
     #[error("{file}: {message}")]
     Parse { file: PathBuf, message: String },
+    /// A problem at a line of a pbrt scene file.
+    #[error("{file}:{line}: {message}")]
+    At {
+        file: PathBuf,
+        line: u32,
+        message: String,
+    },
     #[error("{file}: {entry}: {message}")]
     Invalid {
         file: PathBuf,

@@ -3,7 +3,7 @@
 //! Everything is validated before anything is built: each problem is one [`SceneError`] naming
 //! the file and the entry. Only geometric normals are used; OBJ shading normals are ignored.
 
-use super::{CameraDesc, RenderDefaults, Scene, SceneError, SceneParts};
+use super::{CameraDesc, FovAxis, RenderDefaults, Scene, SceneError, SceneParts};
 use crate::accel::{AccelKind, Geometry, Sphere};
 use crate::bsdf::{Material, MaterialKind};
 use crate::color::Rgb;
@@ -133,8 +133,12 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
     Scene::build(parts, options.accel)
 }
 
-/// Reads and validates the scene file and its meshes, without building the ray queries.
+/// Reads and validates the scene file and its meshes, without building the ray queries: a
+/// pbrt-v4 file by its extension (`.pbrt`), TOML otherwise.
 pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, SceneError> {
+    if super::pbrt::is_pbrt(path) {
+        return super::pbrt::load_parts(path, options);
+    }
     let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
         file: path.to_path_buf(),
         source,
@@ -332,6 +336,8 @@ impl Loader {
             look_at,
             up,
             fov_deg: c.fov,
+            fov_axis: FovAxis::Vertical,
+            mirrored: false,
         })
     }
 

@@ -10,10 +10,11 @@ use std::path::PathBuf;
 mod camera;
 mod error;
 mod load;
+mod pbrt;
 
-pub use camera::{Camera, CameraDesc};
+pub use camera::{Camera, CameraDesc, FovAxis};
 pub use error::SceneError;
-pub use load::{load, LoadOptions};
+pub use load::{load, load_parts, LoadOptions};
 
 /// The `[render]` table: per-scene defaults, each overridable on the command line.
 #[derive(Clone, Debug, PartialEq)]

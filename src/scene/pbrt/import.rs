@@ -1,0 +1,1678 @@
+//! pbrt-v4's graphics state over the directive stream, and the result as [`SceneParts`]: shapes
+//! flattened into one triangle list (instances expanded), materials mapped onto vmerge's BSDFs
+//! (`material.rs`), area lights as emissive variants of their shapes' materials.
+
+use super::material::{self, conductor_f0, dielectric_f0, named_spectrum, phong_exponent};
+use super::parser::{Directive, ParamList, ParamType, ParseError, Parser, Spectrum, TexOr};
+use super::ply::{self, PlyMesh};
+use crate::accel::{Geometry, Sphere};
+use crate::bsdf::{Material, MaterialKind};
+use crate::color::Rgb;
+use crate::light::{Light, SkyDesc};
+use crate::options::OptionName;
+use crate::scene::{CameraDesc, FovAxis, RenderDefaults, SceneError, SceneParts};
+use glam::{DMat3, DMat4, DVec3, Vec3};
+use rayon::prelude::*;
+use sha2::{Digest, Sha256};
+use std::collections::{BTreeSet, HashMap};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// A place in a scene file: index into `Importer::files`, and the line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Loc {
+    file: usize,
+    line: u32,
+}
+
+/// A spectrum-valued texture, as far as vmerge follows it.
+#[derive(Clone, Debug)]
+enum Tex {
+    Constant(Rgb),
+    /// An image file that exists, times `scale`.
+    Image {
+        path: PathBuf,
+        scale: Rgb,
+    },
+    /// An image file that is missing (with `--lenient`): the material's constant stands in.
+    Missing,
+}
+
+#[derive(Clone, Debug)]
+enum FloatTex {
+    Constant(f32),
+    Image,
+}
+
+/// A mesh in object space, shared between the instances that use it.
+#[derive(Debug)]
+enum MeshSource {
+    Inline(Arc<PlyMesh>),
+    Ply(PathBuf),
+}
+
+#[derive(Clone, Debug)]
+enum ShapeKind {
+    Mesh(Arc<MeshSource>),
+    Sphere { radius: f64 },
+}
+
+/// A shape with the graphics state it was declared in.
+#[derive(Clone, Debug)]
+struct ShapeRecord {
+    kind: ShapeKind,
+    ctm: DMat4,
+    reverse_orientation: bool,
+    material: u32,
+    loc: Loc,
+}
+
+#[derive(Clone, Debug)]
+struct AreaLight {
+    radiance: Rgb,
+    loc: Loc,
+}
+
+#[derive(Clone, Debug)]
+struct State {
+    ctm: DMat4,
+    reverse_orientation: bool,
+    material: Option<u32>,
+    area_light: Option<AreaLight>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Block {
+    Attribute,
+    Transform,
+    Object,
+}
+
+/// The texture and normal data of the triangles, in the layout the renderer's scene keeps.
+#[derive(Debug, Default)]
+struct Shading {
+    normals: Vec<Vec3>,
+    uvs: Vec<[f32; 2]>,
+    triangle_normals: Vec<[u32; 3]>,
+    triangle_uvs: Vec<[u32; 3]>,
+}
+
+const NO_DATA: [u32; 3] = [u32::MAX; 3];
+
+pub struct Importer {
+    lenient: bool,
+    warnings: Vec<String>,
+    /// Every file read, for locations; the main file first.
+    files: Vec<PathBuf>,
+    canonical: Vec<PathBuf>,
+    include_stack: Vec<usize>,
+    /// Relative paths resolve against the main file's folder, as in pbrt.
+    dir: PathBuf,
+    hasher: Sha256,
+
+    state: State,
+    stack: Vec<(Block, Loc, State)>,
+    world: bool,
+    motion_warned: bool,
+    ignore_transforms: bool,
+    named_coordinates: HashMap<String, DMat4>,
+    named_materials: HashMap<String, u32>,
+    textures: HashMap<String, Tex>,
+    float_textures: HashMap<String, FloatTex>,
+    objects: HashMap<String, Vec<ShapeRecord>>,
+    current_object: Option<(String, Vec<ShapeRecord>)>,
+    shapes: Vec<ShapeRecord>,
+    ignored_directives: BTreeSet<String>,
+
+    materials: Vec<Material>,
+    material_textures: Vec<Option<PathBuf>>,
+    default_material: Option<u32>,
+    emissive: HashMap<(u32, [u32; 3]), u32>,
+    camera: Option<CameraDesc>,
+    resolution: Option<[u32; 2]>,
+    max_path_length: Option<u32>,
+    lights: Vec<Light>,
+    sky: Option<SkyDesc>,
+    env_image: Option<(PathBuf, f32, DMat4)>,
+}
+
+/// What the import produced besides the parts: warnings, one line each.
+pub struct Imported {
+    pub parts: SceneParts,
+    pub warnings: Vec<String>,
+}
+
+pub fn import(path: &Path, lenient: bool) -> Result<Imported, SceneError> {
+    let mut im = Importer {
+        lenient,
+        warnings: Vec::new(),
+        files: Vec::new(),
+        canonical: Vec::new(),
+        include_stack: Vec::new(),
+        dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+        hasher: Sha256::new(),
+        state: State {
+            ctm: DMat4::IDENTITY,
+            reverse_orientation: false,
+            material: None,
+            area_light: None,
+        },
+        stack: Vec::new(),
+        world: false,
+        motion_warned: false,
+        ignore_transforms: false,
+        named_coordinates: HashMap::new(),
+        named_materials: HashMap::new(),
+        textures: HashMap::new(),
+        float_textures: HashMap::new(),
+        objects: HashMap::new(),
+        current_object: None,
+        shapes: Vec::new(),
+        ignored_directives: BTreeSet::new(),
+        materials: Vec::new(),
+        material_textures: Vec::new(),
+        default_material: None,
+        emissive: HashMap::new(),
+        camera: None,
+        resolution: None,
+        max_path_length: None,
+        lights: Vec::new(),
+        sky: None,
+        env_image: None,
+    };
+    im.run_file(path, None)?;
+    if let Some(&(block, loc, _)) = im.stack.last() {
+        let name = match block {
+            Block::Attribute => "AttributeBegin",
+            Block::Transform => "TransformBegin",
+            Block::Object => "ObjectBegin",
+        };
+        return Err(im.at(loc, format!("{name} is never closed")));
+    }
+    if !im.world {
+        return Err(im.at(
+            Loc { file: 0, line: 1 },
+            "the file has no WorldBegin".to_string(),
+        ));
+    }
+    if !im.ignored_directives.is_empty() {
+        let names: Vec<_> = im.ignored_directives.iter().cloned().collect();
+        im.warnings.push(format!(
+            "{}: ignored (vmerge's own settings apply): {}",
+            im.files[0].display(),
+            names.join(", ")
+        ));
+    }
+    im.finish()
+}
+
+impl Importer {
+    fn at(&self, loc: Loc, message: impl Into<String>) -> SceneError {
+        SceneError::At {
+            file: self.files[loc.file].clone(),
+            line: loc.line,
+            message: message.into(),
+        }
+    }
+
+    fn warn(&mut self, loc: Loc, message: impl AsRef<str>) {
+        self.warnings.push(format!(
+            "{}:{}: {}",
+            self.files[loc.file].display(),
+            loc.line,
+            message.as_ref()
+        ));
+    }
+
+    /// Turns a parameter error into a scene error in `file`.
+    fn pe(&self, file: usize) -> impl Fn(ParseError) -> SceneError {
+        let path = self.files[file].clone();
+        move |e| SceneError::At {
+            file: path.clone(),
+            line: e.line,
+            message: e.message,
+        }
+    }
+
+    fn resolve(&self, name: &str) -> PathBuf {
+        let p = Path::new(name);
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.dir.join(p)
+        }
+    }
+
+    fn run_file(&mut self, path: &Path, from: Option<Loc>) -> Result<(), SceneError> {
+        let read_error = |source: std::io::Error| match from {
+            Some(loc) => self.at(
+                loc,
+                format!("cannot read included file {}: {source}", path.display()),
+            ),
+            None => SceneError::Io {
+                file: path.to_path_buf(),
+                source,
+            },
+        };
+        let canonical = path.canonicalize().map_err(read_error)?;
+        if let (Some(loc), Some(k)) = (
+            from,
+            self.include_stack
+                .iter()
+                .position(|&i| self.canonical[i] == canonical),
+        ) {
+            let mut chain: Vec<String> = self.include_stack[k..]
+                .iter()
+                .map(|&i| self.files[i].display().to_string())
+                .collect();
+            chain.push(path.display().to_string());
+            return Err(self.at(loc, format!("Include loop: {}", chain.join(" -> "))));
+        }
+        let text = std::fs::read_to_string(path).map_err(|source| match from {
+            Some(loc) => self.at(
+                loc,
+                format!("cannot read included file {}: {source}", path.display()),
+            ),
+            None => SceneError::Io {
+                file: path.to_path_buf(),
+                source,
+            },
+        })?;
+        self.hasher.update(text.as_bytes());
+        let file = self.files.len();
+        self.files.push(path.to_path_buf());
+        self.canonical.push(canonical);
+        self.include_stack.push(file);
+        let mut parser = Parser::new(&text);
+        loop {
+            let directive = parser.next_directive().map_err(self.pe(file))?;
+            let Some(d) = directive else { break };
+            self.directive(file, d)?;
+        }
+        self.include_stack.pop();
+        Ok(())
+    }
+
+    fn directive(&mut self, file: usize, d: Directive) -> Result<(), SceneError> {
+        let loc = Loc { file, line: d.line };
+        let pe = self.pe(file);
+        let name = d.name.as_str();
+        let needs_world = matches!(
+            name,
+            "Shape"
+                | "Material"
+                | "MakeNamedMaterial"
+                | "NamedMaterial"
+                | "Texture"
+                | "LightSource"
+                | "AreaLightSource"
+                | "AttributeBegin"
+                | "AttributeEnd"
+                | "ObjectBegin"
+                | "ObjectEnd"
+                | "ObjectInstance"
+                | "ReverseOrientation"
+        );
+        if needs_world && !self.world {
+            return Err(self.at(loc, format!("{name} before WorldBegin")));
+        }
+        let before_world = matches!(
+            name,
+            "Camera" | "Film" | "Sampler" | "PixelFilter" | "Integrator" | "Accelerator"
+        );
+        if before_world && self.world {
+            return Err(self.at(loc, format!("{name} after WorldBegin")));
+        }
+        match name {
+            "WorldBegin" => {
+                if self.world {
+                    return Err(self.at(loc, "a second WorldBegin"));
+                }
+                self.world = true;
+                self.state.ctm = DMat4::IDENTITY;
+                self.named_coordinates
+                    .insert("world".into(), DMat4::IDENTITY);
+            }
+            "WorldEnd" => {}
+            "AttributeBegin" | "TransformBegin" => {
+                let block = if name == "AttributeBegin" {
+                    Block::Attribute
+                } else {
+                    Block::Transform
+                };
+                self.stack.push((block, loc, self.state.clone()));
+            }
+            "AttributeEnd" | "TransformEnd" => {
+                let block = if name == "AttributeEnd" {
+                    Block::Attribute
+                } else {
+                    Block::Transform
+                };
+                match self.stack.pop() {
+                    None => return Err(self.at(loc, format!("unbalanced {name}: nothing is open"))),
+                    Some((open, open_loc, saved)) if open == block => {
+                        if block == Block::Attribute {
+                            self.state = saved;
+                        } else {
+                            self.state.ctm = saved.ctm;
+                        }
+                        let _ = open_loc;
+                    }
+                    Some((open, open_loc, _)) => {
+                        let what = match open {
+                            Block::Attribute => "AttributeBegin",
+                            Block::Transform => "TransformBegin",
+                            Block::Object => "ObjectBegin",
+                        };
+                        return Err(self.at(
+                            loc,
+                            format!(
+                                "{name} closes the {what} of {}:{}",
+                                self.files[open_loc.file].display(),
+                                open_loc.line
+                            ),
+                        ));
+                    }
+                }
+            }
+            "Identity" => self.set_ctm(DMat4::IDENTITY),
+            "Translate" => {
+                let v = d.num_args();
+                self.concat(DMat4::from_translation(DVec3::new(v[0], v[1], v[2])));
+            }
+            "Scale" => {
+                let v = d.num_args();
+                self.concat(DMat4::from_scale(DVec3::new(v[0], v[1], v[2])));
+            }
+            "Rotate" => {
+                let v = d.num_args();
+                let axis = DVec3::new(v[1], v[2], v[3]);
+                if axis.length_squared() == 0.0 {
+                    return Err(self.at(loc, "Rotate about a zero axis"));
+                }
+                self.concat(DMat4::from_axis_angle(axis.normalize(), v[0].to_radians()));
+            }
+            "LookAt" => {
+                let v = d.num_args();
+                let m = look_at(
+                    DVec3::new(v[0], v[1], v[2]),
+                    DVec3::new(v[3], v[4], v[5]),
+                    DVec3::new(v[6], v[7], v[8]),
+                )
+                .ok_or_else(|| self.at(loc, "LookAt: the eye, target and up are degenerate"))?;
+                self.concat(m);
+            }
+            "Transform" | "ConcatTransform" => {
+                let v = d.num_args();
+                let mut a = [0.0; 16];
+                a.copy_from_slice(&v);
+                // pbrt lists the matrix column by column (the translation last).
+                let m = DMat4::from_cols_array(&a);
+                if m.determinant() == 0.0 {
+                    return Err(self.at(loc, format!("{name}: the matrix is singular")));
+                }
+                if name == "Transform" {
+                    self.set_ctm(m);
+                } else {
+                    self.concat(m);
+                }
+            }
+            "CoordinateSystem" => {
+                self.named_coordinates
+                    .insert(d.str_arg(0).to_string(), self.state.ctm);
+            }
+            "CoordSysTransform" => match self.named_coordinates.get(d.str_arg(0)) {
+                Some(&m) => self.state.ctm = m,
+                None => {
+                    let msg = format!("CoordSysTransform: no coordinate system '{}'", d.str_arg(0));
+                    self.warn(loc, msg);
+                }
+            },
+            "ActiveTransform" => {
+                if !self.motion_warned {
+                    self.motion_warned = true;
+                    self.warn(
+                        loc,
+                        "ActiveTransform: no motion blur; only the start transform is used",
+                    );
+                }
+                self.ignore_transforms = d.str_arg(0) == "EndTime";
+            }
+            "TransformTimes" => {}
+            "ReverseOrientation" => {
+                self.state.reverse_orientation = !self.state.reverse_orientation
+            }
+            "Camera" => self.camera(loc, &d)?,
+            "Film" => {
+                let x = d.params.int("xresolution", 1280).map_err(&pe)?;
+                let y = d.params.int("yresolution", 720).map_err(&pe)?;
+                if !(1..=65536).contains(&x) || !(1..=65536).contains(&y) {
+                    return Err(self.at(loc, format!("Film: resolution {x}x{y} is not positive")));
+                }
+                self.resolution = Some([x as u32, y as u32]);
+                d.params.string("filename").map_err(&pe)?;
+            }
+            "Integrator" => {
+                let depth = d.params.int("maxdepth", 5).map_err(&pe)?;
+                if depth < 0 {
+                    return Err(self.at(loc, format!("Integrator: maxdepth {depth} is negative")));
+                }
+                // pbrt counts bounces; vmerge counts a path's segments, one more.
+                self.max_path_length = Some(depth as u32 + 1);
+                d.params.mark_all_used();
+                self.ignored_directives
+                    .insert("Integrator (but maxdepth)".into());
+            }
+            "Sampler" | "PixelFilter" | "Accelerator" | "ColorSpace" | "Option"
+            | "MakeNamedMedium" | "MediumInterface" | "Attribute" => {
+                d.params.mark_all_used();
+                self.ignored_directives.insert(name.to_string());
+            }
+            "Include" | "Import" => {
+                let path = self.resolve(d.str_arg(0));
+                self.run_file(&path, Some(loc))?;
+            }
+            "MakeNamedMaterial" => {
+                let mat_name = d.str_arg(0).to_string();
+                let ty = d
+                    .params
+                    .string("type")
+                    .map_err(&pe)?
+                    .ok_or_else(|| {
+                        self.at(
+                            loc,
+                            format!("MakeNamedMaterial '{mat_name}' has no \"string type\""),
+                        )
+                    })?
+                    .to_string();
+                if self.named_materials.contains_key(&mat_name) {
+                    self.warn(loc, format!("MakeNamedMaterial: '{mat_name}' redefined"));
+                }
+                let index = self.material(loc, &ty, &mat_name, &d.params)?;
+                self.named_materials.insert(mat_name, index);
+            }
+            "Material" => {
+                let ty = d.str_arg(0).to_string();
+                let label = format!("{ty} ({}:{})", self.files[file].display(), d.line);
+                let index = self.material(loc, &ty, &label, &d.params)?;
+                self.state.material = Some(index);
+            }
+            "NamedMaterial" => match self.named_materials.get(d.str_arg(0)) {
+                Some(&m) => self.state.material = Some(m),
+                None => {
+                    return Err(self.at(
+                        loc,
+                        format!("NamedMaterial: no material named '{}'", d.str_arg(0)),
+                    ))
+                }
+            },
+            "Texture" => self.texture(loc, &d)?,
+            "AreaLightSource" => {
+                if d.str_arg(0) != "diffuse" {
+                    return Err(self.at(
+                        loc,
+                        format!("AreaLightSource '{}' is unknown (diffuse)", d.str_arg(0)),
+                    ));
+                }
+                let l = self.spectrum(loc, &d.params, "L", Rgb::WHITE)?;
+                let scale = d.params.float("scale", 1.0).map_err(&pe)?;
+                if d.params.bool("twosided", false).map_err(&pe)? {
+                    self.warn(
+                        loc,
+                        "AreaLightSource: twosided is not supported; emits on the front side only",
+                    );
+                }
+                if d.params.string("filename").map_err(&pe)?.is_some() {
+                    self.warn(
+                        loc,
+                        "AreaLightSource: image emission is not supported; uses L",
+                    );
+                }
+                self.state.area_light = Some(AreaLight {
+                    radiance: l * scale,
+                    loc,
+                });
+            }
+            "LightSource" => self.light_source(loc, &d)?,
+            "Shape" => self.shape(loc, &d)?,
+            "ObjectBegin" => {
+                if self.current_object.is_some() {
+                    return Err(self.at(loc, "ObjectBegin inside another object"));
+                }
+                self.stack.push((Block::Object, loc, self.state.clone()));
+                self.current_object = Some((d.str_arg(0).to_string(), Vec::new()));
+            }
+            "ObjectEnd" => match self.stack.pop() {
+                Some((Block::Object, _, saved)) => {
+                    self.state = saved;
+                    if let Some((name, shapes)) = self.current_object.take() {
+                        self.objects.insert(name, shapes);
+                    }
+                }
+                _ => return Err(self.at(loc, "unbalanced ObjectEnd: no object is open")),
+            },
+            "ObjectInstance" => {
+                if self.current_object.is_some() {
+                    return Err(self.at(loc, "ObjectInstance inside an object definition"));
+                }
+                let Some(shapes) = self.objects.get(d.str_arg(0)) else {
+                    return Err(self.at(
+                        loc,
+                        format!("ObjectInstance: no object named '{}'", d.str_arg(0)),
+                    ));
+                };
+                let ctm = self.state.ctm;
+                let instanced: Vec<_> = shapes
+                    .iter()
+                    .map(|s| ShapeRecord {
+                        ctm: ctm * s.ctm,
+                        ..s.clone()
+                    })
+                    .collect();
+                self.shapes.extend(instanced);
+            }
+            _ => {
+                self.warn(loc, format!("unknown directive '{name}' skipped"));
+            }
+        }
+        let unused: Vec<_> = d
+            .params
+            .unused()
+            .map(|p| {
+                (
+                    p.line,
+                    format!("{name}: parameter \"{} {}\" ignored", p.ty.name(), p.name),
+                )
+            })
+            .collect();
+        for (line, msg) in unused {
+            self.warn(Loc { file, line }, msg);
+        }
+        Ok(())
+    }
+
+    fn set_ctm(&mut self, m: DMat4) {
+        if !self.ignore_transforms {
+            self.state.ctm = m;
+        }
+    }
+
+    fn concat(&mut self, m: DMat4) {
+        if !self.ignore_transforms {
+            self.state.ctm *= m;
+        }
+    }
+
+    fn camera(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
+        let pe = self.pe(loc.file);
+        if d.str_arg(0) != "perspective" {
+            return Err(self.at(
+                loc,
+                format!(
+                    "Camera '{}' is not supported (perspective only)",
+                    d.str_arg(0)
+                ),
+            ));
+        }
+        let fov = d.params.float("fov", 90.0).map_err(&pe)?;
+        if !(fov > 0.0 && fov < 180.0) {
+            return Err(self.at(loc, format!("Camera: fov {fov} is not in (0, 180) degrees")));
+        }
+        if d.params.float("lensradius", 0.0).map_err(&pe)? > 0.0 {
+            self.warn(
+                loc,
+                "Camera: lensradius ignored (a pinhole camera, no depth of field)",
+            );
+        }
+        d.params.float("focaldistance", 1e6).map_err(&pe)?;
+        let world_from_camera = self.state.ctm.inverse();
+        if !world_from_camera.is_finite() {
+            return Err(self.at(loc, "Camera: the camera transform is singular"));
+        }
+        self.named_coordinates
+            .insert("camera".into(), world_from_camera);
+        let position = world_from_camera.transform_point3(DVec3::ZERO);
+        let forward = world_from_camera.transform_vector3(DVec3::Z).normalize();
+        let up = world_from_camera.transform_vector3(DVec3::Y).normalize();
+        let right = world_from_camera.transform_vector3(DVec3::X);
+        // vmerge's camera puts forward x up on the image's right; pbrt puts camera-space +x
+        // there, which is the opposite side unless the transform swaps handedness.
+        let mirrored = forward.cross(up).dot(right) < 0.0;
+        self.camera = Some(CameraDesc {
+            name: "camera".into(),
+            position: position.as_vec3(),
+            look_at: (position + forward).as_vec3(),
+            up: up.as_vec3(),
+            fov_deg: fov,
+            fov_axis: FovAxis::Shorter,
+            mirrored,
+        });
+        Ok(())
+    }
+
+    /// An RGB value for a spectrum parameter, with a warning where it is approximated.
+    fn spectrum(
+        &mut self,
+        loc: Loc,
+        params: &ParamList,
+        name: &str,
+        default: Rgb,
+    ) -> Result<Rgb, SceneError> {
+        let Some((s, line)) = params.spectrum(name).map_err(self.pe(loc.file))? else {
+            return Ok(default);
+        };
+        self.spectrum_value(Loc { line, ..loc }, name, s)
+    }
+
+    fn spectrum_value(&mut self, loc: Loc, name: &str, s: Spectrum) -> Result<Rgb, SceneError> {
+        let rgb = match s {
+            Spectrum::Rgb(v) => Rgb::from_array(v),
+            Spectrum::Named(n) => match named_spectrum(&n) {
+                Some(c) => c,
+                None => {
+                    self.warn(
+                        loc,
+                        format!("'{name}': unknown named spectrum '{n}'; grey 1 used"),
+                    );
+                    Rgb::WHITE
+                }
+            },
+            Spectrum::Blackbody(t) => {
+                self.warn(
+                    loc,
+                    format!("'{name}': blackbody {t} K approximated as white"),
+                );
+                Rgb::WHITE
+            }
+            Spectrum::Sampled(v) => {
+                let values: Vec<f32> = v.chunks_exact(2).map(|p| p[1]).collect();
+                let mean = values.iter().sum::<f32>() / values.len().max(1) as f32;
+                self.warn(
+                    loc,
+                    format!("'{name}': sampled spectrum approximated by its mean {mean}"),
+                );
+                Rgb::splat(mean)
+            }
+        };
+        if !rgb.is_finite() || rgb.min_component() < 0.0 {
+            return Err(self.at(loc, format!("'{name}' {:?} is negative", rgb.to_array())));
+        }
+        Ok(rgb)
+    }
+
+    fn texture(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
+        let pe = self.pe(loc.file);
+        let (name, ty, class) = (d.str_arg(0), d.str_arg(1), d.str_arg(2));
+        let spectrum = match ty {
+            "spectrum" | "color" => true,
+            "float" => false,
+            other => {
+                return Err(self.at(
+                    loc,
+                    format!("Texture '{name}': type '{other}' is neither spectrum nor float"),
+                ))
+            }
+        };
+        let p = &d.params;
+        let tex = match class {
+            "imagemap" => {
+                let file = p.string("filename").map_err(&pe)?.ok_or_else(|| {
+                    self.at(
+                        loc,
+                        format!("Texture '{name}': imagemap without a filename"),
+                    )
+                })?;
+                let scale = p.float("scale", 1.0).map_err(&pe)?;
+                if p.bool("invert", false).map_err(&pe)? {
+                    self.warn(loc, format!("Texture '{name}': invert ignored"));
+                }
+                for known in ["filter", "wrap", "encoding", "maxanisotropy"] {
+                    let _ = p.string(known);
+                    let _ = p.float(known, 0.0);
+                }
+                let path = self.resolve(file);
+                if path.is_file() {
+                    Tex::Image {
+                        path,
+                        scale: Rgb::splat(scale),
+                    }
+                } else if self.lenient {
+                    self.warn(
+                        loc,
+                        format!(
+                            "Texture '{name}': {} is missing; its materials use their constant instead",
+                            path.display()
+                        ),
+                    );
+                    Tex::Missing
+                } else {
+                    return Err(self.at(
+                        loc,
+                        format!(
+                            "Texture '{name}': {} is missing (use {} to render with the material's constant)",
+                            path.display(),
+                            OptionName("lenient")
+                        ),
+                    ));
+                }
+            }
+            "constant" if spectrum => Tex::Constant(self.spectrum(loc, p, "value", Rgb::WHITE)?),
+            "constant" => {
+                let v = p.float("value", 1.0).map_err(&pe)?;
+                self.float_textures
+                    .insert(name.to_string(), FloatTex::Constant(v));
+                return Ok(());
+            }
+            "scale" if spectrum => {
+                let base = self.spectrum_texture(loc, p, "tex", Rgb::WHITE)?;
+                let scale = match p.float_texture("scale").map_err(&pe)? {
+                    None => 1.0,
+                    Some((TexOr::Value(v), _)) => v,
+                    Some((TexOr::Texture(t), line)) => {
+                        self.warn(
+                            Loc { line, ..loc },
+                            format!(
+                                "Texture '{name}': scale by texture '{t}' not supported; 1 used"
+                            ),
+                        );
+                        1.0
+                    }
+                };
+                match base {
+                    Tex::Constant(c) => Tex::Constant(c * scale),
+                    Tex::Image { path, scale: s } => Tex::Image {
+                        path,
+                        scale: s * scale,
+                    },
+                    Tex::Missing => Tex::Missing,
+                }
+            }
+            other => {
+                self.warn(
+                    loc,
+                    format!("Texture '{name}': class '{other}' not supported; grey 0.5 used"),
+                );
+                p.mark_all_used();
+                if spectrum {
+                    Tex::Constant(Rgb::splat(0.5))
+                } else {
+                    self.float_textures
+                        .insert(name.to_string(), FloatTex::Constant(0.5));
+                    return Ok(());
+                }
+            }
+        };
+        if spectrum {
+            self.textures.insert(name.to_string(), tex);
+        } else {
+            self.float_textures
+                .insert(name.to_string(), FloatTex::Image);
+        }
+        Ok(())
+    }
+
+    /// A spectrum parameter that may name a texture.
+    fn spectrum_texture(
+        &mut self,
+        loc: Loc,
+        params: &ParamList,
+        name: &str,
+        default: Rgb,
+    ) -> Result<Tex, SceneError> {
+        match params.spectrum_texture(name).map_err(self.pe(loc.file))? {
+            None => Ok(Tex::Constant(default)),
+            Some((TexOr::Value(s), line)) => Ok(Tex::Constant(self.spectrum_value(
+                Loc { line, ..loc },
+                name,
+                s,
+            )?)),
+            Some((TexOr::Texture(t), line)) => match self.textures.get(&t) {
+                Some(tex) => Ok(tex.clone()),
+                None => Err(self.at(
+                    Loc { line, ..loc },
+                    format!("'{name}': no spectrum texture named '{t}'"),
+                )),
+            },
+        }
+    }
+
+    /// A float parameter that may name a texture (only constants are followed).
+    fn float_param(
+        &mut self,
+        loc: Loc,
+        params: &ParamList,
+        name: &str,
+        default: f32,
+    ) -> Result<Option<f32>, SceneError> {
+        match params.float_texture(name).map_err(self.pe(loc.file))? {
+            None => Ok(None),
+            Some((TexOr::Value(v), _)) => Ok(Some(v)),
+            Some((TexOr::Texture(t), line)) => match self.float_textures.get(&t) {
+                Some(FloatTex::Constant(v)) => Ok(Some(*v)),
+                Some(FloatTex::Image) => {
+                    self.warn(
+                        Loc { line, ..loc },
+                        format!(
+                            "'{name}': float image texture '{t}' not supported; {default} used"
+                        ),
+                    );
+                    Ok(Some(default))
+                }
+                None => Err(self.at(
+                    Loc { line, ..loc },
+                    format!("'{name}': no float texture named '{t}'"),
+                )),
+            },
+        }
+    }
+
+    /// The microfacet alpha of a material's `roughness` (or the mean of `uroughness` and
+    /// `vroughness`), remapped as pbrt does unless `remaproughness` is false.
+    fn alpha(&mut self, loc: Loc, params: &ParamList) -> Result<f32, SceneError> {
+        let r = self.float_param(loc, params, "roughness", 0.0)?;
+        let u = self.float_param(loc, params, "uroughness", 0.0)?;
+        let v = self.float_param(loc, params, "vroughness", 0.0)?;
+        let roughness = match (u, v) {
+            (None, None) => r.unwrap_or(0.0),
+            (u, v) => {
+                let (u, v) = (u.or(r).unwrap_or(0.0), v.or(r).unwrap_or(0.0));
+                if (u - v).abs() > 1e-6 {
+                    self.warn(loc, format!("anisotropic roughness ({u}, {v}) averaged"));
+                }
+                0.5 * (u + v)
+            }
+        };
+        if !(roughness >= 0.0 && roughness.is_finite()) {
+            return Err(self.at(loc, format!("roughness {roughness} is negative")));
+        }
+        let remap = params
+            .bool("remaproughness", true)
+            .map_err(self.pe(loc.file))?;
+        Ok(if remap {
+            material::roughness_to_alpha(roughness)
+        } else {
+            roughness
+        })
+    }
+
+    /// Maps a pbrt material onto vmerge's BSDFs (README, "pbrt-v4 scenes"); one warning per
+    /// material that is approximated.
+    fn material(
+        &mut self,
+        loc: Loc,
+        ty: &str,
+        name: &str,
+        p: &ParamList,
+    ) -> Result<u32, SceneError> {
+        let pe = self.pe(loc.file);
+        let mut notes: Vec<String> = Vec::new();
+        let mut texture = None;
+        let mut albedo =
+            |im: &mut Importer, param: &str, default: Rgb| -> Result<Rgb, SceneError> {
+                Ok(match im.spectrum_texture(loc, p, param, default)? {
+                    Tex::Constant(c) => c,
+                    Tex::Image { path, scale } => {
+                        texture = Some((path, scale));
+                        default
+                    }
+                    Tex::Missing => default,
+                })
+            };
+        let kind = match ty {
+            "diffuse" => MaterialKind::Lambert {
+                kd: albedo(self, "reflectance", Rgb::splat(0.5))?,
+            },
+            "coateddiffuse" => {
+                let reflectance = albedo(self, "reflectance", Rgb::splat(0.5))?;
+                let eta = self.float_param(loc, p, "eta", 1.5)?.unwrap_or(1.5);
+                let alpha = self.alpha(loc, p)?;
+                let f0 = dielectric_f0(eta);
+                for ignored in ["thickness", "g", "maxdepth", "nsamples"] {
+                    let _ = p.float(ignored, 0.0);
+                    let _ = p.int(ignored, 0);
+                }
+                let _ = p.spectrum("albedo");
+                let exponent = phong_exponent(alpha);
+                notes.push(format!(
+                    "coateddiffuse as Phong: kd = reflectance x (1 - F0), ks = F0 = {f0:.3}, exponent {exponent:.0} from alpha {alpha}"
+                ));
+                MaterialKind::Phong {
+                    kd: reflectance * (1.0 - f0),
+                    ks: Rgb::splat(f0),
+                    exponent,
+                }
+            }
+            "conductor" => {
+                let alpha = self.alpha(loc, p)?;
+                let f0 = if p.params.iter().any(|q| q.name == "reflectance") {
+                    self.constant_spectrum(loc, p, "reflectance", Rgb::WHITE)?
+                } else {
+                    let cu = |n| named_spectrum(n).unwrap_or(Rgb::WHITE);
+                    let eta = self.constant_spectrum(loc, p, "eta", cu("metal-Cu-eta"))?;
+                    let k = self.constant_spectrum(loc, p, "k", cu("metal-Cu-k"))?;
+                    conductor_f0(eta, k)
+                };
+                if alpha == 0.0 {
+                    MaterialKind::Mirror { ks: f0 }
+                } else {
+                    let exponent = phong_exponent(alpha);
+                    notes.push(format!(
+                        "rough conductor as Phong: ks = F0 = {:?}, exponent {exponent:.0} from alpha {alpha}",
+                        round3(f0)
+                    ));
+                    MaterialKind::Phong {
+                        kd: Rgb::BLACK,
+                        ks: f0,
+                        exponent,
+                    }
+                }
+            }
+            "dielectric" | "thindielectric" => {
+                let eta_type = p.params.iter().find(|q| q.name == "eta").map(|q| q.ty);
+                let spectral = matches!(
+                    eta_type,
+                    Some(ParamType::Rgb | ParamType::Spectrum | ParamType::Blackbody)
+                );
+                let eta = if !spectral {
+                    self.float_param(loc, p, "eta", 1.5)?.unwrap_or(1.5)
+                } else {
+                    match p.spectrum("eta").map_err(&pe)? {
+                        Some((Spectrum::Named(n), line)) => match named_spectrum(&n) {
+                            Some(c) => c.average(),
+                            None => {
+                                let msg = format!("unknown named spectrum '{n}'; eta 1.5");
+                                self.warn(Loc { line, ..loc }, msg);
+                                1.5
+                            }
+                        },
+                        Some((s, line)) => self
+                            .spectrum_value(Loc { line, ..loc }, "eta", s)?
+                            .average(),
+                        None => 1.5,
+                    }
+                };
+                if !(eta > 0.0) {
+                    return Err(self.at(loc, format!("dielectric eta {eta} is not positive")));
+                }
+                if self.alpha(loc, p)? > 0.0 {
+                    notes.push("rough dielectric as smooth glass".into());
+                }
+                if ty == "thindielectric" {
+                    notes.push("thindielectric as glass".into());
+                }
+                MaterialKind::Glass { ior: eta }
+            }
+            "diffusetransmission" => {
+                let reflectance = albedo(self, "reflectance", Rgb::splat(0.25))?;
+                let scale = p.float("scale", 1.0).map_err(&pe)?;
+                let _ = p.spectrum_texture("transmittance");
+                notes.push(
+                    "diffusetransmission as lambert of its reflectance (no transmission)".into(),
+                );
+                MaterialKind::Lambert {
+                    kd: reflectance * scale,
+                }
+            }
+            "coatedconductor" | "measured" | "mix" | "hair" | "subsurface" | "interface" => {
+                let kd = match p.params.iter().any(|q| q.name == "reflectance") {
+                    true => albedo(self, "reflectance", Rgb::splat(0.5))?,
+                    false => Rgb::splat(0.5),
+                };
+                p.mark_all_used();
+                notes.push(format!("'{ty}' as lambert of kd {:?}", round3(kd)));
+                MaterialKind::Lambert { kd }
+            }
+            other => {
+                return Err(self.at(loc, format!("unknown material type '{other}'")));
+            }
+        };
+        for ignored in ["displacement", "normalmap"] {
+            if p.params.iter().any(|q| q.name == ignored) {
+                let _ = p.string(ignored);
+                let _ = p.float_texture(ignored);
+                notes.push(format!("{ignored} ignored"));
+            }
+        }
+        let kind = self.conserve_energy(&mut notes, kind);
+        if !notes.is_empty() {
+            self.warn(loc, format!("material '{name}': {}", notes.join("; ")));
+        }
+        let index = self.materials.len() as u32;
+        self.materials.push(Material {
+            name: name.to_string(),
+            kind,
+            emission: Rgb::BLACK,
+        });
+        self.material_textures.push(texture.map(|(path, _)| path));
+        Ok(index)
+    }
+
+    /// A spectrum parameter given as a value, a float, or a constant texture; image textures
+    /// are not followed here (a warning, and `fallback`).
+    fn constant_spectrum(
+        &mut self,
+        loc: Loc,
+        p: &ParamList,
+        name: &str,
+        fallback: Rgb,
+    ) -> Result<Rgb, SceneError> {
+        if let Some(q) = p.params.iter().find(|q| q.name == name) {
+            if q.ty == ParamType::Float {
+                let v = p.float(name, 1.0).map_err(self.pe(loc.file))?;
+                return Ok(Rgb::splat(v));
+            }
+        }
+        match self.spectrum_texture(loc, p, name, fallback)? {
+            Tex::Constant(c) => Ok(c),
+            _ => {
+                self.warn(
+                    loc,
+                    format!(
+                        "'{name}' from an image texture not supported; {:?} used",
+                        round3(fallback)
+                    ),
+                );
+                Ok(fallback)
+            }
+        }
+    }
+
+    /// Phong conserves energy only for kd + ks <= 1 (000 eq. 3.1): larger sums are scaled
+    /// down per channel.
+    fn conserve_energy(&self, notes: &mut Vec<String>, kind: MaterialKind) -> MaterialKind {
+        let MaterialKind::Phong { kd, ks, exponent } = kind else {
+            return kind;
+        };
+        let total = kd + ks;
+        if total.max_component() <= 1.0 + 1e-6 {
+            return kind;
+        }
+        notes.push(format!(
+            "kd + ks = {:?} exceeds 1; scaled down",
+            round3(total)
+        ));
+        let f = |c: f32| if c > 1.0 { 1.0 / c } else { 1.0 };
+        let scale = Rgb::new(f(total.r), f(total.g), f(total.b));
+        MaterialKind::Phong {
+            kd: kd * scale,
+            ks: ks * scale,
+            exponent,
+        }
+    }
+
+    fn current_material(&mut self) -> u32 {
+        if let Some(m) = self.state.material {
+            return m;
+        }
+        if let Some(m) = self.default_material {
+            return m;
+        }
+        // pbrt's default material.
+        let index = self.materials.len() as u32;
+        self.materials.push(Material {
+            name: "(default diffuse)".into(),
+            kind: MaterialKind::Lambert {
+                kd: Rgb::splat(0.5),
+            },
+            emission: Rgb::BLACK,
+        });
+        self.material_textures.push(None);
+        self.default_material = Some(index);
+        index
+    }
+
+    /// The material shapes get now: the current one, emissive when an area light is set.
+    fn shape_material(&mut self) -> u32 {
+        let base = self.current_material();
+        let Some(light) = self.state.area_light.clone() else {
+            return base;
+        };
+        if light.radiance.is_black() {
+            return base;
+        }
+        let key = (base, light.radiance.to_array().map(f32::to_bits));
+        if let Some(&m) = self.emissive.get(&key) {
+            return m;
+        }
+        let mut m = self.materials[base as usize].clone();
+        m.name = format!(
+            "{} + AreaLightSource ({}:{})",
+            m.name,
+            self.files[light.loc.file].display(),
+            light.loc.line
+        );
+        m.emission = light.radiance;
+        let index = self.materials.len() as u32;
+        self.materials.push(m);
+        self.material_textures
+            .push(self.material_textures[base as usize].clone());
+        self.emissive.insert(key, index);
+        index
+    }
+
+    fn light_source(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
+        let pe = self.pe(loc.file);
+        let p = &d.params;
+        let scale = p.float("scale", 1.0).map_err(&pe)?;
+        for ignored in ["power", "illuminance"] {
+            if p.float(ignored, -1.0).map_err(&pe)? > 0.0 {
+                self.warn(
+                    loc,
+                    format!("LightSource: '{ignored}' not supported; scale used"),
+                );
+            }
+        }
+        let ctm = self.state.ctm;
+        match d.str_arg(0) {
+            "point" => {
+                let intensity = self.spectrum(loc, p, "I", Rgb::WHITE)? * scale;
+                let from = DVec3::from_array(p.vec3("from", [0.0; 3]).map_err(&pe)?);
+                self.lights.push(Light::Point {
+                    position: ctm.transform_point3(from).as_vec3(),
+                    intensity,
+                });
+            }
+            "distant" => {
+                let irradiance = self.spectrum(loc, p, "L", Rgb::WHITE)? * scale;
+                let from = DVec3::from_array(p.vec3("from", [0.0; 3]).map_err(&pe)?);
+                let to = DVec3::from_array(p.vec3("to", [0.0, 0.0, 1.0]).map_err(&pe)?);
+                let dir = ctm.transform_vector3(to - from);
+                if dir.length_squared() == 0.0 {
+                    return Err(self.at(loc, "LightSource distant: from and to coincide"));
+                }
+                self.lights.push(Light::Directional {
+                    direction: dir.normalize().as_vec3(),
+                    irradiance,
+                    scene: (Vec3::ZERO, 1.0),
+                });
+            }
+            "infinite" => {
+                if self.sky.is_some() || self.env_image.is_some() {
+                    self.warn(loc, "a second infinite light ignored");
+                    p.mark_all_used();
+                    return Ok(());
+                }
+                let file = p.string("filename").map_err(&pe)?.map(str::to_string);
+                let l = self.spectrum(loc, p, "L", Rgb::WHITE)? * scale;
+                match file {
+                    Some(file) => {
+                        let path = self.resolve(&file);
+                        if path.is_file() {
+                            self.env_image = Some((path, scale, ctm));
+                        } else if self.lenient {
+                            self.warn(
+                                loc,
+                                format!(
+                                    "LightSource infinite: {} is missing; a constant sky of radiance {scale} instead",
+                                    path.display()
+                                ),
+                            );
+                            self.sky = Some(constant_sky(Rgb::splat(scale)));
+                        } else {
+                            return Err(self.at(
+                                loc,
+                                format!(
+                                    "LightSource infinite: {} is missing (use {} for a constant sky)",
+                                    path.display(),
+                                    OptionName("lenient")
+                                ),
+                            ));
+                        }
+                    }
+                    None => self.sky = Some(constant_sky(l)),
+                }
+            }
+            other @ ("spot" | "goniometric" | "projection") => {
+                self.warn(loc, format!("LightSource '{other}' not supported; skipped"));
+                p.mark_all_used();
+            }
+            other => {
+                return Err(self.at(loc, format!("LightSource '{other}' is unknown")));
+            }
+        }
+        Ok(())
+    }
+
+    fn shape(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
+        let pe = self.pe(loc.file);
+        let p = &d.params;
+        let kind = match d.str_arg(0) {
+            "trianglemesh" => {
+                let mesh = inline_mesh(p, false).map_err(&pe)?;
+                ShapeKind::Mesh(Arc::new(MeshSource::Inline(Arc::new(mesh))))
+            }
+            "bilinearmesh" => {
+                let mesh = inline_mesh(p, true).map_err(&pe)?;
+                ShapeKind::Mesh(Arc::new(MeshSource::Inline(Arc::new(mesh))))
+            }
+            "plymesh" => {
+                let file = p
+                    .string("filename")
+                    .map_err(&pe)?
+                    .ok_or_else(|| self.at(loc, "Shape plymesh without a filename"))?;
+                let path = self.resolve(file);
+                for ignored in ["displacement", "edgelength"] {
+                    let _ = p.float_texture(ignored);
+                    let _ = p.float(ignored, 0.0);
+                }
+                ShapeKind::Mesh(Arc::new(MeshSource::Ply(path)))
+            }
+            "sphere" => {
+                let radius = p.float("radius", 1.0).map_err(&pe)?;
+                if !(radius > 0.0) {
+                    return Err(self.at(
+                        loc,
+                        format!("Shape sphere: radius {radius} is not positive"),
+                    ));
+                }
+                let zmin = p.float("zmin", -radius).map_err(&pe)?;
+                let zmax = p.float("zmax", radius).map_err(&pe)?;
+                let phimax = p.float("phimax", 360.0).map_err(&pe)?;
+                if zmin > -radius || zmax < radius || phimax < 360.0 {
+                    self.warn(loc, "Shape sphere: partial spheres rendered whole");
+                }
+                ShapeKind::Sphere {
+                    radius: radius as f64,
+                }
+            }
+            other @ ("disk" | "cylinder" | "loopsubdiv" | "curve" | "bilinearpatch") => {
+                self.warn(loc, format!("Shape '{other}' not supported; skipped"));
+                p.mark_all_used();
+                return Ok(());
+            }
+            other => return Err(self.at(loc, format!("unknown shape '{other}'"))),
+        };
+        if p.params.iter().any(|q| q.name == "alpha") {
+            let _ = p.float_texture("alpha");
+            self.warn(loc, "Shape: alpha (cut-outs) ignored");
+        }
+        let material = self.shape_material();
+        let record = ShapeRecord {
+            kind,
+            ctm: self.state.ctm,
+            reverse_orientation: self.state.reverse_orientation,
+            material,
+            loc,
+        };
+        match &mut self.current_object {
+            Some((_, shapes)) => shapes.push(record),
+            None => self.shapes.push(record),
+        }
+        Ok(())
+    }
+
+    /// Reads the PLY files (in parallel, each once), then lays all shapes out in order.
+    fn finish(mut self) -> Result<Imported, SceneError> {
+        let mut first_use: HashMap<PathBuf, Loc> = HashMap::new();
+        for s in &self.shapes {
+            if let ShapeKind::Mesh(m) = &s.kind {
+                if let MeshSource::Ply(path) = &**m {
+                    first_use.entry(path.clone()).or_insert(s.loc);
+                }
+            }
+        }
+        let mut paths: Vec<_> = first_use.keys().cloned().collect();
+        paths.sort();
+        let loaded: Vec<_> = paths
+            .par_iter()
+            .map(|path| {
+                let bytes = std::fs::read(path)?;
+                let hash = Sha256::digest(&bytes);
+                Ok((hash, ply::parse(&bytes)))
+            })
+            .collect::<Vec<Result<_, std::io::Error>>>();
+        let mut meshes: HashMap<PathBuf, Arc<PlyMesh>> = HashMap::new();
+        for (path, result) in paths.iter().zip(loaded) {
+            let loc = first_use[path];
+            match result {
+                Ok((hash, Ok(mesh))) => {
+                    self.hasher.update(hash);
+                    meshes.insert(path.clone(), Arc::new(mesh));
+                }
+                Ok((_, Err(message))) => {
+                    return Err(self.at(loc, format!("Shape plymesh {}: {message}", path.display())))
+                }
+                Err(e) if self.lenient && e.kind() == std::io::ErrorKind::NotFound => {
+                    self.warn(
+                        loc,
+                        format!("Shape plymesh: {} is missing; skipped", path.display()),
+                    );
+                }
+                Err(e) => {
+                    return Err(self.at(
+                        loc,
+                        format!(
+                            "Shape plymesh: cannot read {}: {e}{}",
+                            path.display(),
+                            if e.kind() == std::io::ErrorKind::NotFound {
+                                format!(" (use {} to skip it)", OptionName("lenient"))
+                            } else {
+                                String::new()
+                            }
+                        ),
+                    ))
+                }
+            }
+        }
+        let mut geometry = Geometry::default();
+        let mut triangle_materials = Vec::new();
+        let mut sphere_materials = Vec::new();
+        let mut shading = Shading::default();
+        let mut dropped = 0usize;
+        let shapes = std::mem::take(&mut self.shapes);
+        for s in &shapes {
+            match &s.kind {
+                ShapeKind::Sphere { radius } => {
+                    let center = s.ctm.transform_point3(DVec3::ZERO);
+                    let m = DMat3::from_mat4(s.ctm);
+                    let scales = [m.x_axis.length(), m.y_axis.length(), m.z_axis.length()];
+                    let mean = (scales[0] + scales[1] + scales[2]) / 3.0;
+                    if scales.iter().any(|&x| (x - mean).abs() > 1e-4 * mean) {
+                        self.warn(
+                            s.loc,
+                            "Shape sphere: non-uniform scale; the mean scale used",
+                        );
+                    }
+                    if s.reverse_orientation && self.materials[s.material as usize].is_emissive() {
+                        self.warn(
+                            s.loc,
+                            "Shape sphere: ReverseOrientation ignored; emits outwards",
+                        );
+                    }
+                    geometry.spheres.push(Sphere {
+                        center: center.as_vec3(),
+                        radius: (radius * mean) as f32,
+                    });
+                    sphere_materials.push(s.material);
+                }
+                ShapeKind::Mesh(source) => {
+                    let mesh = match &**source {
+                        MeshSource::Inline(m) => Arc::clone(m),
+                        MeshSource::Ply(path) => match meshes.get(path) {
+                            Some(m) => Arc::clone(m),
+                            None => continue,
+                        },
+                    };
+                    dropped += place_mesh(
+                        &mesh,
+                        s,
+                        &mut geometry,
+                        &mut triangle_materials,
+                        &mut shading,
+                    );
+                }
+            }
+        }
+        if dropped > 0 {
+            self.warnings.push(format!(
+                "{}: dropped {dropped} degenerate triangles",
+                self.files[0].display()
+            ));
+        }
+        if geometry.triangles.is_empty() && geometry.spheres.is_empty() {
+            return Err(SceneError::NoGeometry {
+                file: self.files[0].clone(),
+            });
+        }
+        self.attach_surfaces(&shading);
+        let camera = self.camera.clone().unwrap_or_else(|| CameraDesc {
+            name: "camera".into(),
+            position: Vec3::ZERO,
+            look_at: Vec3::Z,
+            up: Vec3::Y,
+            fov_deg: 90.0,
+            fov_axis: FovAxis::Shorter,
+            mirrored: true,
+        });
+        let source_hash = self
+            .hasher
+            .finalize()
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        let defaults = RenderDefaults {
+            resolution: self.resolution.unwrap_or([1280, 720]),
+            max_path_length: self.max_path_length.unwrap_or(6),
+            radius: None,
+        };
+        Ok(Imported {
+            parts: SceneParts {
+                source: self.files[0].clone(),
+                source_hash,
+                geometry,
+                triangle_materials,
+                sphere_materials,
+                materials: self.materials,
+                point_and_directional: self.lights,
+                sky: self.sky,
+                cameras: vec![camera],
+                defaults,
+                dropped_triangles: dropped,
+            },
+            warnings: self.warnings,
+        })
+    }
+
+    /// Shading normals, uvs, image textures and the environment image: until the renderer's
+    /// scene carries them, each is reported once and the constants stand in.
+    fn attach_surfaces(&mut self, shading: &Shading) {
+        let main = self.files[0].display().to_string();
+        if !shading.normals.is_empty() || !shading.uvs.is_empty() {
+            self.warnings.push(format!(
+                "{main}: {} vertex normals and {} uvs read but not used (flat shading)",
+                shading.normals.len(),
+                shading.uvs.len()
+            ));
+        }
+        let textured = self.material_textures.iter().flatten().count();
+        if textured > 0 {
+            self.warnings.push(format!(
+                "{main}: {textured} materials with image textures use their constants"
+            ));
+        }
+        if let Some((path, scale, _)) = self.env_image.take() {
+            self.warnings.push(format!(
+                "{main}: environment image {} not used; a constant sky of radiance {scale}",
+                path.display()
+            ));
+            self.sky = Some(constant_sky(Rgb::splat(scale)));
+        }
+    }
+}
+
+fn round3(c: Rgb) -> [f32; 3] {
+    c.to_array().map(|x| (x * 1000.0).round() / 1000.0)
+}
+
+fn constant_sky(l: Rgb) -> SkyDesc {
+    SkyDesc {
+        horizon: l,
+        zenith: l,
+        up: Vec3::Y,
+    }
+}
+
+/// pbrt's LookAt: the camera-from-world matrix, `None` when degenerate.
+fn look_at(eye: DVec3, target: DVec3, up: DVec3) -> Option<DMat4> {
+    let dir = (target - eye).try_normalize()?;
+    let right = up.try_normalize()?.cross(dir).try_normalize()?;
+    let new_up = dir.cross(right);
+    let world_from_camera = DMat4::from_cols(
+        right.extend(0.0),
+        new_up.extend(0.0),
+        dir.extend(0.0),
+        eye.extend(1.0),
+    );
+    Some(world_from_camera.inverse())
+}
+
+/// A `trianglemesh` (or, with `bilinear`, a `bilinearmesh` split into two triangles per
+/// patch) from its parameters, checked.
+fn inline_mesh(p: &ParamList, bilinear: bool) -> Result<PlyMesh, ParseError> {
+    let what = if bilinear {
+        "bilinearmesh"
+    } else {
+        "trianglemesh"
+    };
+    let fail = |line: u32, message: String| ParseError { line, message };
+    let (positions, p_line) = p
+        .nums("P", &[ParamType::Point3])?
+        .ok_or_else(|| fail(0, format!("{what} without \"point3 P\"")))?;
+    let n = positions.len() / 3;
+    let per_face = if bilinear { 4 } else { 3 };
+    let indices: Vec<u32> = match p.nums("indices", &[ParamType::Integer])? {
+        Some((v, line)) => {
+            if v.len() % per_face != 0 {
+                return Err(fail(
+                    line,
+                    format!(
+                        "{what}: {} indices are not a multiple of {per_face}",
+                        v.len()
+                    ),
+                ));
+            }
+            let mut out = Vec::with_capacity(v.len());
+            for &i in v {
+                if i < 0.0 || i >= n as f64 {
+                    return Err(fail(
+                        line,
+                        format!("{what}: index {i} out of range (there are {n} vertices)"),
+                    ));
+                }
+                out.push(i as u32);
+            }
+            out
+        }
+        None if n == per_face => (0..per_face as u32).collect(),
+        None => {
+            return Err(fail(
+                p_line,
+                format!("{what} with {n} vertices needs \"integer indices\""),
+            ))
+        }
+    };
+    let normals = match p.nums("N", &[ParamType::Normal])? {
+        Some((v, line)) if v.len() != positions.len() => {
+            return Err(fail(
+                line,
+                format!("{what}: {} normals for {n} vertices", v.len() / 3),
+            ))
+        }
+        Some((v, _)) => v
+            .chunks_exact(3)
+            .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
+            .collect(),
+        None => Vec::new(),
+    };
+    let uvs = match p.nums("uv", &[ParamType::Point2])? {
+        Some((v, line)) if v.len() / 2 != n => {
+            return Err(fail(
+                line,
+                format!("{what}: {} uvs for {n} vertices", v.len() / 2),
+            ))
+        }
+        Some((v, _)) => v
+            .chunks_exact(2)
+            .map(|c| [c[0] as f32, c[1] as f32])
+            .collect(),
+        None => Vec::new(),
+    };
+    for unused in ["S", "faceIndices"] {
+        let _ = p.nums(unused, &[ParamType::Vector3, ParamType::Integer]);
+    }
+    let triangles = if bilinear {
+        indices
+            .chunks_exact(4)
+            .flat_map(|q| [[q[0], q[1], q[3]], [q[0], q[3], q[2]]])
+            .collect()
+    } else {
+        indices
+            .chunks_exact(3)
+            .map(|t| [t[0], t[1], t[2]])
+            .collect()
+    };
+    Ok(PlyMesh {
+        positions: positions
+            .chunks_exact(3)
+            .map(|c| [c[0] as f32, c[1] as f32, c[2] as f32])
+            .collect(),
+        normals,
+        uvs,
+        triangles,
+    })
+}
+
+/// Appends a mesh in world space; returns the number of degenerate triangles dropped. Each
+/// triangle is wound so that vmerge's normal (counter-clockwise side) is the side pbrt treats
+/// as the front: its geometric normal, flipped by ReverseOrientation or a transform that swaps
+/// handedness, or turned to the shading normals where the mesh has them.
+fn place_mesh(
+    mesh: &PlyMesh,
+    s: &ShapeRecord,
+    geometry: &mut Geometry,
+    triangle_materials: &mut Vec<u32>,
+    shading: &mut Shading,
+) -> usize {
+    let base = geometry.positions.len() as u32;
+    let identity = s.ctm == DMat4::IDENTITY;
+    geometry.positions.extend(mesh.positions.iter().map(|&p| {
+        let v = Vec3::from_array(p);
+        if identity {
+            v
+        } else {
+            s.ctm.transform_point3(v.as_dvec3()).as_vec3()
+        }
+    }));
+    let normal_matrix = DMat3::from_mat4(s.ctm).inverse().transpose();
+    let normal_base = shading.normals.len() as u32;
+    shading.normals.extend(mesh.normals.iter().map(|&n| {
+        let v = Vec3::from_array(n);
+        if identity {
+            v
+        } else {
+            (normal_matrix * v.as_dvec3()).normalize_or_zero().as_vec3()
+        }
+    }));
+    let uv_base = shading.uvs.len() as u32;
+    shading.uvs.extend_from_slice(&mesh.uvs);
+    let flip = s.reverse_orientation ^ (DMat3::from_mat4(s.ctm).determinant() < 0.0);
+    let mut dropped = 0;
+    for &[a, b, c] in &mesh.triangles {
+        let [pa, pb, pc] = [a, b, c].map(|i| geometry.positions[(base + i) as usize]);
+        let ng = (pb - pa).cross(pc - pa);
+        if ng.length_squared() <= 0.0 {
+            dropped += 1;
+            continue;
+        }
+        let front = if mesh.normals.is_empty() {
+            if flip {
+                -ng
+            } else {
+                ng
+            }
+        } else {
+            [a, b, c]
+                .map(|i| shading.normals[(normal_base + i) as usize])
+                .into_iter()
+                .sum::<Vec3>()
+        };
+        let t = if front.dot(ng) < 0.0 {
+            [a, c, b]
+        } else {
+            [a, b, c]
+        };
+        geometry.triangles.push(t.map(|i| base + i));
+        triangle_materials.push(s.material);
+        shading.triangle_normals.push(if mesh.normals.is_empty() {
+            NO_DATA
+        } else {
+            t.map(|i| normal_base + i)
+        });
+        shading.triangle_uvs.push(if mesh.uvs.is_empty() {
+            NO_DATA
+        } else {
+            t.map(|i| uv_base + i)
+        });
+    }
+    dropped
+}
