@@ -783,7 +783,8 @@ mod tests {
         assert_eq!(line("Shape \"x\" \"point3 P\" [ 1 2 ]"), 1);
         assert_eq!(line("Shape \"x\" \"integer indices\" [ 0 1.5 2 ]"), 1);
         assert_eq!(line("Shape \"x\" \"flaot radius\" 1"), 1);
-        assert_eq!(line("Shape \"x\" \"float radius\" [ 1\nWorldBegin"), 1);
+        assert_eq!(line("Shape \"x\" \"float radius\" [ 1\nWorldBegin"), 2);
+        assert_eq!(line("Shape \"x\" \"float radius\" [ 1\n2\n"), 1);
         assert_eq!(line("Translate 1 2\nWorldBegin"), 2);
         assert_eq!(line("Shape \"x\" \"float radius\" 1 \"float radius\" 2"), 1);
         // Type checks at lookup: a float wanted, an integer given.
