@@ -8,8 +8,9 @@ fn vmerge() -> Command {
     Command::new(env!("CARGO_BIN_EXE_vmerge"))
 }
 
-/// Every fixture under tests/fixtures/bad/ must be refused with exit code 2, a message naming
-/// the offending file, and nothing written.
+/// Every fixture under tests/fixtures/bad/ (a `scene.toml` or a `scene.pbrt`) must be refused
+/// with exit code 2, a message naming the offending file, and nothing written. A fixture's
+/// `expected` file holds text the message must contain (for pbrt files: `file:line: what`).
 #[test]
 fn bad_scenes_exit_2_and_write_nothing() {
     let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/bad");
@@ -19,12 +20,17 @@ fn bad_scenes_exit_2_and_write_nothing() {
         .collect();
     cases.sort();
     assert!(
-        cases.len() >= 10,
+        cases.len() >= 30,
         "expected the bad-input fixtures, found {}",
         cases.len()
     );
     for case in cases {
-        let scene = case.join("scene.toml");
+        let toml = case.join("scene.toml");
+        let scene = if toml.exists() {
+            toml
+        } else {
+            case.join("scene.pbrt")
+        };
         let out = tempfile::tempdir().unwrap();
         let exr = out.path().join("out.exr");
         let result = vmerge()
@@ -56,6 +62,14 @@ fn bad_scenes_exit_2_and_write_nothing() {
             "{}: message does not name the file: {stderr}",
             case.display()
         );
+        if let Ok(expected) = std::fs::read_to_string(case.join("expected")) {
+            assert!(
+                stderr.contains(expected.trim()),
+                "{}: message lacks '{}': {stderr}",
+                case.display(),
+                expected.trim()
+            );
+        }
         let written: Vec<_> = std::fs::read_dir(out.path()).unwrap().collect();
         assert!(written.is_empty(), "{}: wrote {written:?}", case.display());
     }
