@@ -10,7 +10,7 @@ use std::path::PathBuf;
 mod camera;
 mod error;
 mod load;
-mod pbrt;
+pub mod pbrt;
 
 pub use camera::{Camera, CameraDesc, FovAxis};
 pub use error::SceneError;

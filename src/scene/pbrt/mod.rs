@@ -12,7 +12,7 @@ use std::path::Path;
 mod import;
 mod material;
 mod parser;
-mod ply;
+pub mod ply;
 mod tokenizer;
 
 /// Reads a pbrt-v4 scene; warnings go to stderr, one line each.

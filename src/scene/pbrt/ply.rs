@@ -23,35 +23,48 @@ pub fn parse(bytes: &[u8]) -> Result<PlyMesh, String> {
         .read_header(&mut reader)
         .map_err(|e| format!("bad PLY header: {e}"))?;
     let payload = reader.into_inner();
-    let mut source = match header.encoding {
-        Encoding::Ascii => Source::Ascii(AsciiSource {
-            text: payload,
-            pos: 0,
-        }),
-        Encoding::BinaryLittleEndian => Source::Binary {
-            bytes: payload,
-            pos: 0,
-            big_endian: false,
-        },
-        Encoding::BinaryBigEndian => Source::Binary {
-            bytes: payload,
-            pos: 0,
-            big_endian: true,
-        },
-    };
+    match header.encoding {
+        Encoding::Ascii => decode(
+            &header.elements,
+            &mut AsciiSource {
+                text: payload,
+                pos: 0,
+            },
+        ),
+        Encoding::BinaryLittleEndian => decode(
+            &header.elements,
+            &mut Binary::<false> {
+                bytes: payload,
+                pos: 0,
+            },
+        ),
+        Encoding::BinaryBigEndian => decode(
+            &header.elements,
+            &mut Binary::<true> {
+                bytes: payload,
+                pos: 0,
+            },
+        ),
+    }
+}
+
+fn decode<S: Scalars>(
+    elements: &ply_rs_bw::ply::KeyMap<ElementDef>,
+    source: &mut S,
+) -> Result<PlyMesh, String> {
     let mut mesh = PlyMesh::default();
     let mut vertex_count = None;
-    for (name, element) in &header.elements {
+    for (name, element) in elements {
         match name.as_str() {
             "vertex" => {
-                read_vertices(&mut source, element, &mut mesh)?;
+                read_vertices(source, element, &mut mesh)?;
                 vertex_count = Some(element.count);
             }
             "face" => {
                 let n = vertex_count.ok_or("the face element comes before the vertex element")?;
-                read_faces(&mut source, element, n, &mut mesh)?;
+                read_faces(source, element, n, &mut mesh)?;
             }
-            _ => skip_element(&mut source, element)?,
+            _ => skip_element(source, element)?,
         }
     }
     if vertex_count.is_none() {
@@ -60,13 +73,51 @@ pub fn parse(bytes: &[u8]) -> Result<PlyMesh, String> {
     Ok(mesh)
 }
 
-enum Source<'a> {
-    Binary {
-        bytes: &'a [u8],
-        pos: usize,
-        big_endian: bool,
-    },
-    Ascii(AsciiSource<'a>),
+/// Why a value could not be read.
+enum Short {
+    End,
+    Bad(String),
+}
+
+/// A payload read value by value; each encoding is its own type so the decoding loops are
+/// compiled for it.
+trait Scalars {
+    fn scalar(&mut self, ty: &ScalarType) -> Result<f64, Short>;
+}
+
+struct Binary<'a, const BIG_ENDIAN: bool> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<const BIG_ENDIAN: bool> Binary<'_, BIG_ENDIAN> {
+    #[inline]
+    fn take<const N: usize>(&mut self) -> Result<[u8; N], Short> {
+        let raw = self.bytes.get(self.pos..self.pos + N).ok_or(Short::End)?;
+        self.pos += N;
+        let mut b = [0u8; N];
+        b.copy_from_slice(raw);
+        if BIG_ENDIAN {
+            b.reverse();
+        }
+        Ok(b)
+    }
+}
+
+impl<const BIG_ENDIAN: bool> Scalars for Binary<'_, BIG_ENDIAN> {
+    #[inline]
+    fn scalar(&mut self, ty: &ScalarType) -> Result<f64, Short> {
+        Ok(match ty {
+            ScalarType::Char => i8::from_le_bytes(self.take()?) as f64,
+            ScalarType::UChar => u8::from_le_bytes(self.take()?) as f64,
+            ScalarType::Short => i16::from_le_bytes(self.take()?) as f64,
+            ScalarType::UShort => u16::from_le_bytes(self.take()?) as f64,
+            ScalarType::Int => i32::from_le_bytes(self.take()?) as f64,
+            ScalarType::UInt => u32::from_le_bytes(self.take()?) as f64,
+            ScalarType::Float => f32::from_le_bytes(self.take()?) as f64,
+            ScalarType::Double => f64::from_le_bytes(self.take()?),
+        })
+    }
 }
 
 struct AsciiSource<'a> {
@@ -74,8 +125,8 @@ struct AsciiSource<'a> {
     pos: usize,
 }
 
-impl AsciiSource<'_> {
-    fn token(&mut self) -> Option<&str> {
+impl Scalars for AsciiSource<'_> {
+    fn scalar(&mut self, _ty: &ScalarType) -> Result<f64, Short> {
         while self.pos < self.text.len() && self.text[self.pos].is_ascii_whitespace() {
             self.pos += 1;
         }
@@ -83,64 +134,12 @@ impl AsciiSource<'_> {
         while self.pos < self.text.len() && !self.text[self.pos].is_ascii_whitespace() {
             self.pos += 1;
         }
-        (self.pos > start)
-            .then(|| std::str::from_utf8(&self.text[start..self.pos]).ok())
-            .flatten()
-    }
-}
-
-/// Why a value could not be read.
-enum Short {
-    End,
-    Bad(String),
-}
-
-fn size(ty: &ScalarType) -> usize {
-    match ty {
-        ScalarType::Char | ScalarType::UChar => 1,
-        ScalarType::Short | ScalarType::UShort => 2,
-        ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
-        ScalarType::Double => 8,
-    }
-}
-
-impl Source<'_> {
-    fn scalar(&mut self, ty: &ScalarType) -> Result<f64, Short> {
-        match self {
-            Source::Binary {
-                bytes,
-                pos,
-                big_endian,
-            } => {
-                let n = size(ty);
-                let Some(raw) = bytes.get(*pos..*pos + n) else {
-                    return Err(Short::End);
-                };
-                *pos += n;
-                let mut b = [0u8; 8];
-                b[..n].copy_from_slice(raw);
-                if *big_endian {
-                    b[..n].reverse();
-                }
-                Ok(match ty {
-                    ScalarType::Char => b[0] as i8 as f64,
-                    ScalarType::UChar => b[0] as f64,
-                    ScalarType::Short => i16::from_le_bytes([b[0], b[1]]) as f64,
-                    ScalarType::UShort => u16::from_le_bytes([b[0], b[1]]) as f64,
-                    ScalarType::Int => i32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
-                    ScalarType::UInt => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
-                    ScalarType::Float => f32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f64,
-                    ScalarType::Double => f64::from_le_bytes(b),
-                })
-            }
-            Source::Ascii(a) => {
-                let Some(tok) = a.token() else {
-                    return Err(Short::End);
-                };
-                tok.parse::<f64>()
-                    .map_err(|_| Short::Bad(format!("'{tok}' is not a number")))
-            }
+        if self.pos == start {
+            return Err(Short::End);
         }
+        let tok = String::from_utf8_lossy(&self.text[start..self.pos]);
+        tok.parse::<f64>()
+            .map_err(|_| Short::Bad(format!("'{tok}' is not a number")))
     }
 }
 
@@ -160,8 +159,8 @@ enum Slot {
     Ignore,
 }
 
-fn read_vertices(
-    source: &mut Source,
+fn read_vertices<S: Scalars>(
+    source: &mut S,
     element: &ElementDef,
     mesh: &mut PlyMesh,
 ) -> Result<(), String> {
@@ -234,8 +233,8 @@ fn read_vertices(
     Ok(())
 }
 
-fn skip_list(
-    source: &mut Source,
+fn skip_list<S: Scalars>(
+    source: &mut S,
     count_ty: &ScalarType,
     item_ty: &ScalarType,
 ) -> Result<(), Short> {
@@ -246,8 +245,8 @@ fn skip_list(
     Ok(())
 }
 
-fn read_faces(
-    source: &mut Source,
+fn read_faces<S: Scalars>(
+    source: &mut S,
     element: &ElementDef,
     vertex_count: usize,
     mesh: &mut PlyMesh,
@@ -302,7 +301,7 @@ fn read_faces(
     Ok(())
 }
 
-fn skip_element(source: &mut Source, element: &ElementDef) -> Result<(), String> {
+fn skip_element<S: Scalars>(source: &mut S, element: &ElementDef) -> Result<(), String> {
     let what = format!("'{}' elements", element.name);
     for i in 0..element.count {
         for (_, p) in &element.properties {
