@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 use vmerge::accel::AccelKind;
-use vmerge::options::{OptionName, RenderOptions, Technique};
+use vmerge::options::{DensityMis, OptionName, RenderOptions, Technique};
 
 /// The options' defaults, as the library writes them.
 const DEFAULT: RenderOptions = RenderOptions::DEFAULT;
@@ -44,8 +44,14 @@ enum Command {
         a: PathBuf,
         b: PathBuf,
     },
-    /// Print the mean absolute and RMS error between two images.
-    Errors { a: PathBuf, b: PathBuf },
+    /// Print the mean absolute and RMS error between two images (B the reference).
+    Errors {
+        a: PathBuf,
+        b: PathBuf,
+        /// Print the relative MSE, mean of (a - b)^2 / (b^2 + 0.01), instead.
+        #[arg(long)]
+        relative: bool,
+    },
     /// Print the mean RGB of an image.
     Average { input: PathBuf },
     /// Print the render time recorded in a render.
@@ -146,6 +152,12 @@ struct TechniqueArgs {
     /// upg, upg-camera: trials after which a merge is dropped (and counted).
     #[arg(long, default_value_t = DEFAULT.upg_max_trials)]
     upg_max_trials: u32,
+    /// vcm, bpm: weigh merges by the density of light vertices (002's VCM+ or VCM*).
+    #[arg(long, value_parser = density_mis_parser())]
+    density_mis: Option<DensityMis>,
+    /// vcm, bpm: iterations whose light vertices fill the density map.
+    #[arg(long, default_value_t = DEFAULT.density_map_iterations)]
+    density_map_iterations: u32,
 }
 
 #[derive(Args)]
@@ -179,6 +191,17 @@ fn technique_parser() -> impl TypedValueParser<Value = Technique> {
     let names = Technique::ALL.map(|t| PossibleValue::new(t.name()).help(t.description()));
     PossibleValuesParser::new(names)
         .try_map(|name| Technique::from_name(&name).ok_or("no such technique"))
+}
+
+/// 002's heuristics by name.
+fn density_mis_parser() -> impl TypedValueParser<Value = DensityMis> {
+    let names = DensityMis::ALL.map(|d| PossibleValue::new(d.name()).help(d.description()));
+    PossibleValuesParser::new(names).try_map(|name| {
+        DensityMis::ALL
+            .into_iter()
+            .find(|d| d.name() == name)
+            .ok_or("no such heuristic")
+    })
 }
 
 /// The ray-query backends by name.
@@ -266,9 +289,13 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bake { output, input } => Ok(tools::bake(&output, &input)?),
         Command::Strip { output, input } => Ok(tools::strip(&output, &input)?),
         Command::Diff { output, a, b } => Ok(tools::diff(&output, &a, &b)?),
-        Command::Errors { a, b } => {
-            let (mae, rmse) = tools::errors(&a, &b)?;
-            println!("{mae} {rmse}");
+        Command::Errors { a, b, relative } => {
+            if relative {
+                println!("{}", tools::relative_mse(&a, &b)?);
+            } else {
+                let (mae, rmse) = tools::errors(&a, &b)?;
+                println!("{mae} {rmse}");
+            }
             Ok(())
         }
         Command::Average { input } => {
@@ -327,6 +354,8 @@ fn render(args: RenderArgs) -> Result<()> {
         unweighted: t.unweighted,
         upg_packet: t.upg_packet,
         upg_max_trials: t.upg_max_trials,
+        density_mis: t.density_mis,
+        density_map_iterations: t.density_map_iterations,
     };
     let setup = vmerge::render::NewRender {
         scene: args.scene,

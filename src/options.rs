@@ -91,6 +91,36 @@ impl fmt::Display for Technique {
     }
 }
 
+/// 002's MIS heuristics for density estimates: the merge at x_i counts n_VM / k_i light
+/// sub-paths instead of n_VM, with k_i the expected number of light vertices in its radius.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum DensityMis {
+    /// 002 eq. (6).
+    #[serde(rename = "vcm+")]
+    Plus,
+    /// 002 eq. (7): normalised by the path's mean of 1 / k_j.
+    #[serde(rename = "vcm*")]
+    Star,
+}
+
+impl DensityMis {
+    pub const ALL: [DensityMis; 2] = [DensityMis::Plus, DensityMis::Star];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            DensityMis::Plus => "vcm+",
+            DensityMis::Star => "vcm*",
+        }
+    }
+
+    pub fn description(self) -> &'static str {
+        match self {
+            DensityMis::Plus => "merges weighed by n_VM / k (002 eq. 6)",
+            DensityMis::Star => "and normalised by the path's mean of 1 / k (002 eq. 7)",
+        }
+    }
+}
+
 /// Every option that changes the image. Serialized into the EXR so `continue` can resume.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RenderOptions {
@@ -122,6 +152,17 @@ pub struct RenderOptions {
     /// `upg`, `upg-camera`: Bernoulli trials after which a merge is dropped.
     #[serde(default = "default_upg_max_trials")]
     pub upg_max_trials: u32,
+    /// `vcm`, `bpm`: 002's density-map heuristic instead of VCM's.
+    #[serde(default)]
+    pub density_mis: Option<DensityMis>,
+    /// Iterations whose light vertices fill the density map; after them it is fixed (002
+    /// sec. 5.1), so the weights are deterministic.
+    #[serde(default = "default_density_map_iterations")]
+    pub density_map_iterations: u32,
+}
+
+fn default_density_map_iterations() -> u32 {
+    RenderOptions::DEFAULT.density_map_iterations
 }
 
 fn default_upg_packet() -> u32 {
@@ -150,6 +191,8 @@ impl RenderOptions {
         unweighted: false,
         upg_packet: 1,
         upg_max_trials: 10_000,
+        density_mis: None,
+        density_map_iterations: 50,
     };
 
     /// The radius-shrinking exponent a render uses: the given one, 0.75 for the techniques
@@ -315,6 +358,20 @@ pub static RULES: &[OptionRule] = &[
         is_set: |o| o.upg_max_trials != RenderOptions::DEFAULT.upg_max_trials,
         invalid: |o| (o.upg_max_trials == 0).then(|| "0".to_string()),
         expected: "at least 1 trial",
+    },
+    OptionRule {
+        name: "density_mis",
+        takes: |t| matches!(t, Technique::Vcm | Technique::Bpm),
+        is_set: |o| o.density_mis.is_some(),
+        invalid: |o| (o.density_mis.is_some() && o.no_vm).then(|| "with no merges".to_string()),
+        expected: "merges to weigh (not with no_vm)",
+    },
+    OptionRule {
+        name: "density_map_iterations",
+        takes: |t| matches!(t, Technique::Vcm | Technique::Bpm),
+        is_set: |o| o.density_map_iterations != RenderOptions::DEFAULT.density_map_iterations,
+        invalid: |o| (o.density_map_iterations == 0).then(|| "0".to_string()),
+        expected: "at least 1 iteration",
     },
 ];
 

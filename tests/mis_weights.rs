@@ -17,9 +17,10 @@ use glam::Vec3;
 use vmerge::bsdf::{Bsdf, TransportMode};
 use vmerge::integrator::mis::{
     self, BptStep, BptVertex, ConnectionPdfs, Gather, LightSamplePdfs, Neighbour, Power, VcmVertex,
-    VcmWeights, VmHere,
+    VcmWeights, VmHere, NO_DENSITY,
 };
 use vmerge::integrator::upg::Deferred;
+use vmerge::options::DensityMis;
 use vmerge::sampling::{Rng, Stream};
 use vmerge::scene::{Camera, Scene};
 
@@ -404,7 +405,7 @@ impl State {
         pdf_w: f32,
         rev_pdf_w: f32,
         delta: bool,
-        here: VmHere,
+        (here, rho): (VmHere, f32),
     ) {
         if !delta {
             self.mis = self.at(w, rev_pdf_w);
@@ -415,7 +416,7 @@ impl State {
             pdf_w,
             rev_pdf_w,
             delta,
-            here == VmHere::Valid,
+            (here == VmHere::Valid, rho),
         );
         self.deferred = if !delta && here == VmHere::Deferred {
             Deferred::new(w, ratio, cos_out)
@@ -429,15 +430,25 @@ impl State {
 /// following vcm.rs: the light sub-path arrives at x_i, keeps a deferred merge only on a
 /// surface, is stored, and scatters on; the eye sub-path likewise from the camera. Which merges
 /// are techniques is the library's one rule, [`Gather::merge_at`].
+///
+/// `inv_k` gives each vertex's 1 / k for 002's heuristics (weights made
+/// [`VcmWeights::with_density`]); empty for VCM and UPG.
 fn vcm_weights(
     w: &VcmWeights,
     gather: Gather,
     path: &FullPath,
     q: &PathPdfs,
+    inv_k: &[f32],
 ) -> (Vec<f32>, Vec<f32>) {
     let k = q.k;
     let l = path.light;
     let surface = |i: usize| (1..k).contains(&i) && q.connectable[i];
+    // A merge's density factor and 1 / k at x_i, as vcm.rs takes them at each surface vertex.
+    let density = |i: usize| match inv_k.get(i) {
+        Some(&inv) if surface(i) => (w.mis(inv), inv),
+        _ => NO_DENSITY,
+    };
+    let rho = |i: usize| density(i).0;
     let neighbour = |i: usize| Neighbour::surface_if(surface(i));
     let merge_valid = |j: usize| {
         surface(j) && gather.merge_at(neighbour(j - 1), neighbour(j + 1)) == VmHere::Valid
@@ -469,11 +480,15 @@ fn vcm_weights(
             !(i == 1 && l.infinite),
         );
         state.deferred.keep_if(surface(i));
+        if surface(i) && !inv_k.is_empty() {
+            w.visit(&mut state.mis, inv_k[i]);
+        }
         light[i] = state;
         if i + 1 < k {
             let here = gather.merge_at(neighbour(i - 1), Neighbour::Unknown);
             let delta = !q.connectable[i];
-            state.scatter(w, q.cos_next[i], q.light_w[i], q.eye_w[i], delta, here);
+            let (cos, pdf, rev) = (q.cos_next[i], q.light_w[i], q.eye_w[i]);
+            state.scatter(w, cos, pdf, rev, delta, (here, rho(i)));
         }
     }
     let mut eye = vec![State::default(); k + 1];
@@ -484,10 +499,20 @@ fn vcm_weights(
     for i in (1..k).rev() {
         state.arrive(w, q.dist2[i].sqrt(), q.cos_next[i], true);
         state.deferred.keep_if(surface(i));
+        if surface(i) && !inv_k.is_empty() {
+            w.visit(&mut state.mis, inv_k[i]);
+        }
         eye[i] = state;
         let here = gather.merge_at(Neighbour::Unknown, neighbour(i + 1));
         let delta = !q.connectable[i];
-        state.scatter(w, q.cos_prev[i], q.eye_w[i], q.light_w[i], delta, here);
+        state.scatter(
+            w,
+            q.cos_prev[i],
+            q.eye_w[i],
+            q.light_w[i],
+            delta,
+            (here, rho(i)),
+        );
     }
     // Reaching the light: area lights add the last segment, the sky does not; the light
     // point is no surface to merge through.
@@ -505,20 +530,25 @@ fn vcm_weights(
             } else if s == 1 {
                 w.light_sample(
                     &eye[1].at(w, q.light_w[1]),
-                    eta(1),
+                    eta(1) * rho(1),
                     &light_sample_pdfs(path, q),
                 )
             } else if s == k {
                 let camera_pdf_a = q.eye_a[k - 1] * w.light_paths;
                 let rev = q.eye_w[k - 1];
-                w.to_camera(&light[k - 1].at(w, rev), eta(k - 1), camera_pdf_a, rev)
+                w.to_camera(
+                    &light[k - 1].at(w, rev),
+                    eta(k - 1) * rho(k - 1),
+                    camera_pdf_a,
+                    rev,
+                )
             } else {
                 let p = connection_pdfs(q, s);
                 w.connect(
                     &light[s - 1].at(w, p.light_rev_pdf_w),
-                    eta(s - 1),
+                    eta(s - 1) * rho(s - 1),
                     &eye[s].at(w, p.eye_rev_pdf_w),
-                    eta(s),
+                    eta(s) * rho(s),
                     &p,
                 )
             }
@@ -535,9 +565,9 @@ fn vcm_weights(
             w.merge(
                 &light[j].at(w, pdf_w),
                 &eye[j].at(w, rev_pdf_w),
-                pdf_w,
-                rev_pdf_w,
+                (pdf_w, rev_pdf_w),
                 eta(j),
+                density(j),
             )
         })
         .collect();
@@ -577,6 +607,7 @@ fn check_scene(name: &str) -> (usize, usize) {
         camera: Camera::new(&desc, PIXELS, PIXELS),
     };
     let (mut specular, mut merged, mut clamped) = (0, 0, 0);
+    let mut reweighted = std::collections::HashMap::<&str, usize>::new();
     for path in &paths {
         let q = evaluate(&setup, path);
         // A path the BSDFs cannot scatter along (light behind a surface) has no techniques.
@@ -612,7 +643,7 @@ fn check_scene(name: &str) -> (usize, usize) {
                     } else {
                         VcmWeights::clamped(power, radius, setup.n())
                     };
-                    let (vc, vm) = vcm_weights(&w, gather, path, &q);
+                    let (vc, vm) = vcm_weights(&w, gather, path, &q, &[]);
                     let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
                     assert!(
                         (sum - 1.0).abs() < 1e-4,
@@ -627,7 +658,7 @@ fn check_scene(name: &str) -> (usize, usize) {
                         // The same techniques without the clamp: where the weights differ,
                         // min(p pi r^2, 1) was 1 somewhere.
                         let free = VcmWeights::new(power, radius, setup.n(), true, true);
-                        let (free_vc, free_vm) = vcm_weights(&free, gather, path, &q);
+                        let (free_vc, free_vm) = vcm_weights(&free, gather, path, &q, &[]);
                         let differs = |a: &[f32], b: &[f32]| {
                             a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-3)
                         };
@@ -637,9 +668,34 @@ fn check_scene(name: &str) -> (usize, usize) {
                     }
                 }
             }
+            // 002's heuristics with a random, fixed density: 1 / k per vertex in [1e-3, 1].
+            let mut rng = Rng::for_sample(q.k as u64, beta as u64, 0, Stream::Light);
+            let inv_k: Vec<f32> = (0..=q.k)
+                .map(|_| 10f32.powf(-3.0 * rng.next_f32()))
+                .collect();
+            for mode in [DensityMis::Plus, DensityMis::Star] {
+                for radius in [1e-3, 1e-2, 0.1] {
+                    let plain = VcmWeights::new(power, radius, setup.n(), true, true);
+                    let w = plain.with_density(mode);
+                    let (vc, vm) = vcm_weights(&w, Gather::Density, path, &q, &inv_k);
+                    let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
+                    assert!(
+                        (sum - 1.0).abs() < 1e-4,
+                        "{name}: {mode:?} weights of a {}-segment path sum to {sum} \
+                         (beta {beta}, r {radius}): VC {vc:?} VM {vm:?}",
+                        q.k
+                    );
+                    let (plain_vc, plain_vm) = vcm_weights(&plain, Gather::Density, path, &q, &[]);
+                    let differs =
+                        |a: &[f32], b: &[f32]| a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-3);
+                    if differs(&vc, &plain_vc) || differs(&vm, &plain_vm) {
+                        *reweighted.entry(mode.name()).or_insert(0) += 1;
+                    }
+                }
+            }
             // VC alone is BPT: the two recursions give the same weights.
             let w = VcmWeights::new(power, 0.01, setup.n(), true, false);
-            let (vc, _) = vcm_weights(&w, Gather::Density, path, &q);
+            let (vc, _) = vcm_weights(&w, Gather::Density, path, &q, &[]);
             for (s, (a, b)) in vc.iter().zip(&bpt).enumerate() {
                 assert!(
                     (a - b).abs() < 1e-4,
@@ -649,6 +705,12 @@ fn check_scene(name: &str) -> (usize, usize) {
         }
     }
     assert!(clamped > 0, "{name}: the clamp never bound");
+    for mode in [DensityMis::Plus, DensityMis::Star] {
+        assert!(
+            reweighted.get(mode.name()).copied().unwrap_or(0) > 0,
+            "{name}: {mode:?} never changed a weight"
+        );
+    }
     (specular, merged)
 }
 

@@ -291,11 +291,18 @@ fn diff_errors_and_average_on_a_tiny_pair() {
     assert_eq!(mae, 8.5 / 6.0);
     assert_eq!(rmse, (38.25f64 / 6.0).sqrt());
     assert_eq!(tools::average(&a).unwrap(), [1.75, 1.5, 2.0]);
+    // d^2 / (b^2 + 0.01) per channel, over 6 channels.
+    let terms = [1.0 / 4.01, 1.0 / 0.01, 0.0, 0.25 / 1.01, 36.0 / 16.01, 0.0];
+    let expected = terms.iter().sum::<f64>() / 6.0;
+    let relative = tools::relative_mse(&a, &b).unwrap();
+    assert!((relative - expected).abs() < 1e-12 * expected, "{relative}");
+    assert_eq!(tools::relative_mse(&a, &a).unwrap(), 0.0);
 
     let wide = write_image(dir.path(), "wide.exr", 4, vec![Rgb::BLACK; 4]);
     for message in [
         tools::errors(&a, &wide).unwrap_err().to_string(),
         tools::diff(&out, &a, &wide).unwrap_err().to_string(),
+        tools::relative_mse(&a, &wide).unwrap_err().to_string(),
     ] {
         assert!(
             message.contains("wide.exr") && message.contains("a.exr") && message.contains("4x1"),

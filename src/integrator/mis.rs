@@ -14,6 +14,7 @@
 //! Russian roulette stays out of the pdfs: every technique evaluates the same pdfs, so the
 //! weights still sum to one.
 
+use crate::options::DensityMis;
 use crate::sampling::mis_power;
 
 /// The MIS power beta (1 = balance heuristic, 2 = power heuristic).
@@ -281,7 +282,12 @@ pub struct VcmWeights {
     pub vm_normalization: f32,
     /// UPG's clamped acceptance (000 eq. 2.80): mis(pi r^2) and mis(n_VM); `None` for VCM.
     clamp: Option<(f32, f32)>,
+    /// 002's heuristic, when the density map has data.
+    density: Option<DensityMis>,
 }
+
+/// The density factor and 1 / k of a merge where 002's heuristic is off (VCM, UPG).
+pub const NO_DENSITY: (f32, f32) = (1.0, 0.0);
 
 /// The geometry factors of arriving at a vertex, mis(d^2) and 1 / mis(|cos|), for whatever
 /// else a sub-path carries across the segment.
@@ -304,6 +310,30 @@ impl VcmWeights {
             vc_factor: if both { power.mis(1.0 / eta_vcm) } else { 0.0 },
             vm_normalization: 1.0 / eta_vcm,
             clamp: None,
+            density: None,
+        }
+    }
+
+    /// VCM's weights with 002's heuristic. A merge at x_i weighs c_i = n_VM / k_i light
+    /// sub-paths instead of n_VM (VCM+, 002 eq. (6)), with k_i the expected number of light
+    /// vertices within r of x_i, clamped to [1, n_VM]; so eta_i = eta_VCM / k_i, and in the
+    /// powered form mis(eta_i) = mis(eta_VCM) rho_i with rho_i = mis(1 / k_i), which callers
+    /// pass as the merge's `rho`.
+    ///
+    /// VCM* (002 eq. (7)) divides every c_i of a path by the mean 1/k over the path's
+    /// non-delta surface vertices, M = S / C with S = sum_j 1/k_j and C their count. The
+    /// factor mis(1 / M) is common to all merge terms of one path, and the power heuristic
+    /// factorises, so every weight is VCM+'s with its merge terms multiplied by
+    /// nu = mis(C / S). Its recursion is 001's with d^VC split: the connection part d^VC
+    /// (001 eq. (35) without eta_i) and the merge part d^VC_VM (the eta_i terms alone), both
+    /// carried by the same products, so d^VC of VCM+ = d^VC + d^VC_VM and VCM*'s is
+    /// d^VC + nu d^VC_VM. Each sub-path carries its own S and C ([`Self::visit`]); a weight
+    /// adds the two sub-paths' (counting a merge vertex once) and applies nu.
+    /// Without connections (bpm) only merges compete, nu cancels and VCM* is VCM+.
+    pub fn with_density(self, density: DensityMis) -> Self {
+        VcmWeights {
+            density: Some(density),
+            ..self
         }
     }
 
@@ -339,6 +369,29 @@ impl VcmWeights {
         }
     }
 
+    /// A non-delta surface vertex with 1 / k = `inv_k` joins the sub-path's VCM* mean.
+    pub fn visit(&self, v: &mut VcmVertex, inv_k: f32) {
+        if self.density == Some(DensityMis::Star) {
+            v.inv_k_sum += inv_k;
+            v.vertices += 1.0;
+        }
+    }
+
+    /// VCM*'s nu = mis(C / S) of a path whose vertices give `inv_k_sum` = S and `vertices` = C
+    /// (002 eq. (7)); 1 otherwise, and for paths with no surface vertex to merge at.
+    fn nu(&self, inv_k_sum: f32, vertices: f32) -> f32 {
+        if self.density == Some(DensityMis::Star) && vertices > 0.0 && inv_k_sum > 0.0 {
+            self.mis(vertices / inv_k_sum)
+        } else {
+            1.0
+        }
+    }
+
+    /// d^VC of a sub-path vertex with VCM*'s merge terms multiplied by `nu`.
+    fn d_vc(v: &VcmVertex, nu: f32) -> f32 {
+        v.d_vc + nu * v.d_vc_vm
+    }
+
     /// y_0 on a light (sec. 5.1-5.2 for infinite and delta lights). `cos_at_light` is 1 for
     /// infinite lights.
     pub fn light_origin(
@@ -358,6 +411,7 @@ impl VcmWeights {
             d_vcm: self.mis(direct_pdf_a / emission_pdf_w), // 001 eq. (31)
             d_vc,
             d_vm: d_vc * self.vc_factor, // 001 eq. (33)
+            ..VcmVertex::default()
         }
     }
 
@@ -388,14 +442,16 @@ impl VcmWeights {
         let inv_cos = 1.0 / self.mis(cos_in);
         v.d_vcm *= d2 * inv_cos; // 001 eq. (34)
         v.d_vc *= inv_cos; // 001 eq. (35)
+        v.d_vc_vm *= inv_cos;
         v.d_vm *= inv_cos; // 001 eq. (36)
         Arrival { d2, inv_cos }
     }
 
     /// Scattering at a vertex: the sampling part of 001 eqs. (34)-(36). `pdf_w` the pdf of the
     /// sampled direction, `rev_pdf_w` of the reverse, `cos_out` at the sampled direction;
-    /// `merge_here` whether merging at this vertex is a technique, its terms eta_i in d^VC and
-    /// 1 in d^VM. Returns mis(cos_out / pdf_w), the factor a merge term at this vertex takes.
+    /// `merge_here` whether merging at this vertex is a technique, its terms eta_i rho in d^VC
+    /// and rho in d^VM (`rho` the density factor, [`Self::with_density`]; 1 for VCM and UPG).
+    /// Returns mis(cos_out / pdf_w), the factor a merge term at this vertex takes.
     pub fn scatter(
         &self,
         v: &mut VcmVertex,
@@ -403,49 +459,60 @@ impl VcmWeights {
         pdf_w: f32,
         rev_pdf_w: f32,
         delta: bool,
-        merge_here: bool,
+        (merge_here, rho): (bool, f32),
     ) -> f32 {
         if delta {
             // 001 sec. 5.3: delta pdfs cancel; only the cosine ratio survives.
+            let cos = self.mis(cos_out);
             v.d_vcm = 0.0;
-            v.d_vc *= self.mis(cos_out);
-            v.d_vm *= self.mis(cos_out);
+            v.d_vc *= cos;
+            v.d_vc_vm *= cos;
+            v.d_vm *= cos;
             return 0.0;
         }
         let ratio = self.mis(cos_out / pdf_w);
         let (eta, here) = if merge_here {
-            (self.eta(v.d_vcm), 1.0)
+            (self.eta(v.d_vcm) * rho, rho)
         } else {
             (0.0, 0.0)
         };
-        v.d_vc = ratio * (v.d_vc * self.mis(rev_pdf_w) + v.d_vcm + eta); // 001 eq. (35)
-        v.d_vm = ratio * (v.d_vm * self.mis(rev_pdf_w) + v.d_vcm * self.vc_factor + here); // 001 eq. (36)
+        let rev = self.mis(rev_pdf_w);
+        if self.density == Some(DensityMis::Star) {
+            v.d_vc = ratio * (v.d_vc * rev + v.d_vcm); // 001 eq. (35), connection terms
+            v.d_vc_vm = ratio * (v.d_vc_vm * rev + eta); // 001 eq. (35), merge terms
+        } else {
+            v.d_vc = ratio * (v.d_vc * rev + v.d_vcm + eta); // 001 eq. (35)
+        }
+        v.d_vm = ratio * (v.d_vm * rev + v.d_vcm * self.vc_factor + here); // 001 eq. (36)
         v.d_vcm = self.mis(1.0 / pdf_w); // 001 eq. (34)
         ratio
     }
 
     /// An eye sub-path hits a light (s = 0; 001 eqs. (42)-(43)); the pdfs include the light's
-    /// pick probability.
+    /// pick probability. The light point is no vertex to merge at.
     pub fn hit_light(&self, eye: &VcmVertex, direct_pdf_a: f32, emission_pdf_w: f32) -> f32 {
-        let w_camera = self.mis(direct_pdf_a) * eye.d_vcm + self.mis(emission_pdf_w) * eye.d_vc;
+        let nu = self.nu(eye.inv_k_sum, eye.vertices);
+        let w_camera =
+            self.mis(direct_pdf_a) * eye.d_vcm + self.mis(emission_pdf_w) * Self::d_vc(eye, nu);
         1.0 / (1.0 + w_camera)
     }
 
     /// Light sampling (s = 1; 001 eqs. (44)-(45)); `eye_eta` is the merge at the eye vertex
-    /// ([`Self::eta_if`]).
+    /// ([`Self::eta_if`] times its density factor).
     pub fn light_sample(&self, eye: &VcmVertex, eye_eta: f32, p: &LightSamplePdfs) -> f32 {
+        let nu = self.nu(eye.inv_k_sum, eye.vertices);
         let w_light = if p.delta_light {
             0.0
         } else {
             self.mis(p.bsdf_pdf_w / p.light_pdf_w) // 001 eq. (44)
         };
         let w_camera = self.mis(p.eye_rev_pdf_a())
-            * (eye_eta + eye.d_vcm + eye.d_vc * self.mis(p.bsdf_rev_pdf_w)); // 001 eq. (45)
+            * (eye_eta * nu + eye.d_vcm + Self::d_vc(eye, nu) * self.mis(p.bsdf_rev_pdf_w)); // 001 eq. (45)
         1.0 / (w_light + 1.0 + w_camera)
     }
 
     /// Connection of a light vertex and an eye vertex (s, t > 1; 001 eqs. (40)-(41)), with the
-    /// merges at the two end vertices ([`Self::eta_if`]).
+    /// merges at the two end vertices ([`Self::eta_if`] times their density factors).
     pub fn connect(
         &self,
         light: &VcmVertex,
@@ -454,10 +521,14 @@ impl VcmWeights {
         eye_eta: f32,
         p: &ConnectionPdfs,
     ) -> f32 {
+        let nu = self.nu(
+            light.inv_k_sum + eye.inv_k_sum,
+            light.vertices + eye.vertices,
+        );
         let w_light = self.mis(p.light_pdf_a)
-            * (light_eta + light.d_vcm + light.d_vc * self.mis(p.light_rev_pdf_w)); // 001 eq. (40)
-        let w_camera =
-            self.mis(p.eye_pdf_a) * (eye_eta + eye.d_vcm + eye.d_vc * self.mis(p.eye_rev_pdf_w)); // 001 eq. (41)
+            * (light_eta * nu + light.d_vcm + Self::d_vc(light, nu) * self.mis(p.light_rev_pdf_w)); // 001 eq. (40)
+        let w_camera = self.mis(p.eye_pdf_a)
+            * (eye_eta * nu + eye.d_vcm + Self::d_vc(eye, nu) * self.mis(p.eye_rev_pdf_w)); // 001 eq. (41)
         1.0 / (w_light + 1.0 + w_camera)
     }
 
@@ -470,45 +541,64 @@ impl VcmWeights {
         camera_pdf_a: f32,
         rev_pdf_w: f32,
     ) -> f32 {
+        let nu = self.nu(light.inv_k_sum, light.vertices);
         let w_light = self.mis(camera_pdf_a / self.light_paths)
-            * (light_eta + light.d_vcm + light.d_vc * self.mis(rev_pdf_w)); // 001 eq. (46)
+            * (light_eta * nu + light.d_vcm + Self::d_vc(light, nu) * self.mis(rev_pdf_w)); // 001 eq. (46)
         1.0 / (w_light + 1.0)
     }
 
     /// A merge of a light vertex at an eye vertex (001 eqs. (38)-(39)): `pdf_w` the eye BSDF's
     /// pdf towards the light vertex's incoming direction, `rev_pdf_w` the reverse, `eta` the
-    /// merge's own ([`Self::eta`]).
+    /// merge's own ([`Self::eta`]) and `(rho, inv_k)` its density factor and 1 / k (1 and 0
+    /// for VCM and UPG; both sub-paths counted the merge vertex, VCM* counts it once).
     ///
     /// 001 eq. (38) writes each side as d^VCM / eta_VCM + d^VM mis(pdf). With connections,
     /// d^VC = eta_VCM d^VM holds at every vertex (compare eqs. (35) and (36): every term of
     /// d^VM is d^VC's divided by eta_VCM, and eq. (33) starts it so), so that form equals
-    /// (d^VCM + d^VC mis(pdf)) / eta_VCM, used here because it holds for UPG's per-vertex
-    /// eta_j too, where d^VM cannot carry each merge's own eta. Without connections (bpm)
-    /// d^VC is zero and d^VM holds the merges alone.
+    /// (d^VCM + d^VC mis(pdf)) / eta_VCM, used here because it holds for per-vertex eta_j
+    /// too (UPG's clamped acceptance, 002's density factors), where d^VM cannot carry each
+    /// merge's own eta. Without connections (bpm) d^VC is zero and d^VM holds the merges alone,
+    /// each with its density factor.
     pub fn merge(
         &self,
         light: &VcmVertex,
         eye: &VcmVertex,
-        pdf_w: f32,
-        rev_pdf_w: f32,
+        (pdf_w, rev_pdf_w): (f32, f32),
         eta: f32,
+        (rho, inv_k): (f32, f32),
     ) -> f32 {
         let (w_light, w_camera) = if self.vm_factor > 0.0 {
+            let nu = self.nu(
+                light.inv_k_sum + eye.inv_k_sum - inv_k,
+                light.vertices + eye.vertices - 1.0,
+            );
+            let eta = eta * rho * nu;
             (
-                (light.d_vcm + light.d_vc * self.mis(pdf_w)) / eta, // 001 eq. (38)
-                (eye.d_vcm + eye.d_vc * self.mis(rev_pdf_w)) / eta, // 001 eq. (39)
+                (light.d_vcm + Self::d_vc(light, nu) * self.mis(pdf_w)) / eta, // 001 eq. (38)
+                (eye.d_vcm + Self::d_vc(eye, nu) * self.mis(rev_pdf_w)) / eta, // 001 eq. (39)
             )
         } else {
-            (light.d_vm * self.mis(pdf_w), eye.d_vm * self.mis(rev_pdf_w))
+            (
+                light.d_vm * self.mis(pdf_w) / rho,
+                eye.d_vm * self.mis(rev_pdf_w) / rho,
+            )
         };
         1.0 / (w_light + 1.0 + w_camera)
     }
 }
 
-/// SmallVCM's MIS quantities of one sub-path vertex (001 eqs. (31)-(36)).
+/// SmallVCM's MIS quantities of one sub-path vertex (001 eqs. (31)-(36)), and what VCM*
+/// carries besides (zero otherwise; see [`VcmWeights::with_density`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct VcmVertex {
     pub d_vcm: f32,
     pub d_vc: f32,
     pub d_vm: f32,
+    /// VCM*: the merge terms of d^VC, kept apart from its connection terms because the path's
+    /// normalisation, known only once the path is whole, multiplies them alone.
+    pub d_vc_vm: f32,
+    /// VCM*: sum of 1 / k_j over the sub-path's non-delta surface vertices so far, this one
+    /// included, and their count (002 eq. (7)'s mean, split between the sub-paths).
+    pub inv_k_sum: f32,
+    pub vertices: f32,
 }

@@ -8,6 +8,7 @@ use upg::UpgCounters;
 
 pub mod bpt;
 pub mod connection;
+pub mod density;
 pub mod mis;
 pub mod pt;
 pub mod subpath;

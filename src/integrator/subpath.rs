@@ -12,7 +12,7 @@ use crate::film::add_sample;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
 
-/// A stored light sub-path vertex: everything a connection or a merge needs (68 bytes).
+/// A stored light sub-path vertex: everything a connection or a merge needs.
 #[derive(Clone, Copy, Debug)]
 pub struct LightVertex {
     pub position: Vec3,
@@ -27,6 +27,8 @@ pub struct LightVertex {
     pub mis: VcmVertex,
     /// `upg-camera`'s merge at the previous vertex, awaiting this one's reverse pdf.
     pub deferred: Deferred,
+    /// The density factor of a merge here (002; 1 without the density map).
+    pub rho: f32,
     /// The previous vertex of the sub-path is a non-delta surface vertex, stored just before
     /// this one.
     pub after_surface: bool,
@@ -62,6 +64,9 @@ pub struct SubPath {
     /// A UPG merge at the previous vertex gathered from the other side (`upg` on eye
     /// sub-paths, `upg-camera` on light sub-paths).
     pub deferred: Deferred,
+    /// The density factor rho of a merge at the current vertex and its 1 / k (002; 1 and 0
+    /// without the density map).
+    pub density: (f32, f32),
 }
 
 impl SubPath {

@@ -20,7 +20,8 @@
 //! pdfs.
 
 use super::connection::{Connection, LightSample};
-use super::mis::{ConnectionPdfs, Gather, Neighbour, Power, VcmWeights, VmHere};
+use super::density::DensityMap;
+use super::mis::{ConnectionPdfs, Gather, Neighbour, Power, VcmWeights, VmHere, NO_DENSITY};
 use super::subpath::{EyeVertex, LightChunk, LightPaths, LightVertex, SubPath};
 use super::upg::acceptance::{Estimator, PacketWidth};
 use super::upg::merge::{Gathered, Tentative, UpgMerges};
@@ -105,6 +106,8 @@ pub struct VertexCm<'a> {
     alpha: f32,
     /// The merges of `upg` and `upg-camera`.
     upg_merges: Option<UpgMerges<'a>>,
+    /// 002's density map, for `--density-mis`.
+    density: Option<DensityMap>,
     /// Light vertices stored in the last iteration, for the statistics.
     stored_vertices: usize,
     /// UPG's counters over all iterations so far.
@@ -133,11 +136,15 @@ impl<'a> VertexCm<'a> {
                 o.roulette,
             )
         });
+        let density = o
+            .density_mis
+            .map(|_| DensityMap::new(base_radius, o.density_map_iterations));
         VertexCm {
             modes,
             base_radius,
             alpha: o.alpha(),
             upg_merges,
+            density,
             ctx,
             stored_vertices: 0,
             upg: UpgCounters::default(),
@@ -153,10 +160,29 @@ impl<'a> VertexCm<'a> {
             Power(self.ctx.options.beta),
             self.ctx.camera.pixel_count() as f32,
         );
-        if self.modes.gather == Gather::Density {
-            VcmWeights::new(power, radius, paths, self.modes.vc, self.modes.vm)
-        } else {
-            VcmWeights::clamped(power, radius, paths)
+        if self.modes.gather != Gather::Density {
+            return VcmWeights::clamped(power, radius, paths);
+        }
+        let w = VcmWeights::new(power, radius, paths, self.modes.vc, self.modes.vm);
+        match (self.ctx.options.density_mis, &self.density) {
+            (Some(mode), Some(map)) if map.iterations() > 0 => w.with_density(mode),
+            _ => w,
+        }
+    }
+
+    /// The density factor rho = mis(1 / k) of a merge at `x` and its 1 / k (002 eq. (6)),
+    /// with `x` joining the sub-path's VCM* mean; [`NO_DENSITY`] without the density map.
+    fn density_at(&self, w: &VcmWeights, x: Vec3, state: &mut SubPath) -> (f32, f32) {
+        let inv_k = self
+            .density
+            .as_ref()
+            .and_then(|map| map.inv_expected_count(x, w.radius, w.light_paths));
+        match inv_k {
+            Some(inv_k) => {
+                w.visit(&mut state.mis, inv_k);
+                (w.mis(inv_k), inv_k)
+            }
+            None => NO_DENSITY,
         }
     }
 
@@ -195,6 +221,7 @@ impl<'a> VertexCm<'a> {
             prev_surface: false,
             mis: w.light_origin(direct_pdf_a, emission_pdf_w, cos_at_light, light.is_delta()),
             deferred: Deferred::NONE,
+            density: NO_DENSITY,
         })
     }
 
@@ -237,7 +264,7 @@ impl<'a> VertexCm<'a> {
             s.pdf_w,
             s.rev_pdf_w,
             s.delta,
-            here == VmHere::Valid,
+            (here == VmHere::Valid, state.density.0),
         );
         state.deferred = if !s.delta && here == VmHere::Deferred {
             Deferred::new(w, ratio, cos_out)
@@ -287,7 +314,9 @@ impl<'a> VertexCm<'a> {
                 break;
             };
             state.deferred.keep_if(!bsdf.is_delta());
+            state.density = NO_DENSITY;
             if !bsdf.is_delta() {
+                state.density = self.density_at(w, hit.position, &mut state);
                 if self.modes.vc || self.modes.vm {
                     chunk.vertices.push(LightVertex {
                         position: hit.position,
@@ -298,6 +327,7 @@ impl<'a> VertexCm<'a> {
                         path_length: state.path_length,
                         mis: state.mis,
                         deferred: state.deferred,
+                        rho: state.density.0,
                         after_surface: state.prev_surface,
                     });
                 }
@@ -313,6 +343,44 @@ impl<'a> VertexCm<'a> {
                 .is_none()
             {
                 break;
+            }
+        }
+    }
+
+    /// The light sub-paths of one iteration: fixed chunks of paths, in order.
+    fn light_pass(&self, w: &VcmWeights, iteration: u64, paths: usize) -> Vec<LightChunk> {
+        (0..paths)
+            .into_par_iter()
+            .step_by(LIGHT_CHUNK)
+            .map(|start| {
+                let mut chunk = LightChunk::default();
+                for index in start..(start + LIGHT_CHUNK).min(paths) {
+                    self.trace_light_path(w, iteration, index, &mut chunk);
+                    chunk.ends.push(chunk.vertices.len() as u32);
+                }
+                chunk
+            })
+            .collect()
+    }
+
+    /// A continued render starts with an empty density map: the light passes of the
+    /// iterations that filled it are traced again (their vertices depend only on the seed).
+    fn rebuild_density_map(&mut self, iteration: u64, paths: usize) {
+        loop {
+            let next = match &self.density {
+                Some(map) if map.is_filling() && u64::from(map.iterations()) < iteration => {
+                    u64::from(map.iterations())
+                }
+                _ => return,
+            };
+            let w = self.weights(next);
+            let positions: Vec<Vec3> = self
+                .light_pass(&w, next, paths)
+                .iter()
+                .flat_map(|chunk| chunk.vertices.iter().map(|v| v.position))
+                .collect();
+            if let Some(map) = &mut self.density {
+                map.insert(&positions);
             }
         }
     }
@@ -348,7 +416,7 @@ impl<'a> VertexCm<'a> {
                 .modes
                 .gather
                 .merge_at(Neighbour::surface_if(state.prev_surface), Neighbour::Other);
-            let eta = w.eta_if(here == VmHere::Valid, state.mis.d_vcm);
+            let eta = w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0;
             w.to_camera(
                 &state.mis_at(w, eval.rev_pdf_w),
                 eta,
@@ -416,7 +484,7 @@ impl<'a> VertexCm<'a> {
             .merge_at(Neighbour::Other, Neighbour::surface_if(state.prev_surface));
         let weight = w.light_sample(
             &state.mis_at(w, ls.eval.rev_pdf_w),
-            w.eta_if(here == VmHere::Valid, state.mis.d_vcm),
+            w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0,
             &ls.pdfs(),
         );
         stats.rays += 1;
@@ -460,7 +528,7 @@ impl<'a> VertexCm<'a> {
             } else {
                 lv.mis.d_vcm
             },
-        );
+        ) * lv.rho;
         let eye_eta = w.eta_if(
             eye_here == VmHere::Valid,
             if gather == Gather::UpgLight {
@@ -468,7 +536,7 @@ impl<'a> VertexCm<'a> {
             } else {
                 state.mis.d_vcm
             },
-        );
+        ) * state.density.0;
         let weight = w.connect(
             &lv.mis_at(w, p.light_rev_pdf_w),
             light_eta,
@@ -514,7 +582,13 @@ impl<'a> VertexCm<'a> {
             let weight = if self.modes.ppm {
                 1.0
             } else {
-                w.merge(&lv.mis, &state.mis, eval.pdf_w, eval.rev_pdf_w, w.vm_factor)
+                w.merge(
+                    &lv.mis,
+                    &state.mis,
+                    (eval.pdf_w, eval.rev_pdf_w),
+                    w.vm_factor,
+                    state.density,
+                )
             };
             sum += eval.f * lv.throughput * weight;
         });
@@ -546,6 +620,7 @@ impl<'a> VertexCm<'a> {
             prev_surface: false,
             mis: w.camera_origin(camera_pdf_w),
             deferred: Deferred::NONE,
+            density: NO_DENSITY,
         };
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
@@ -576,7 +651,9 @@ impl<'a> VertexCm<'a> {
                 break;
             };
             state.deferred.keep_if(!bsdf.is_delta());
+            state.density = NO_DENSITY;
             if !bsdf.is_delta() {
+                state.density = self.density_at(w, hit.position, &mut state);
                 if self.modes.vc {
                     color += state.throughput
                         * self.light_sampling(w, &state, &hit, &bsdf, &mut rng, stats);
@@ -634,28 +711,19 @@ impl<'a> VertexCm<'a> {
 
 impl Integrator for VertexCm<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
+        self.rebuild_density_map(iteration, frame.len());
         let w = self.weights(iteration);
-        let paths = frame.len();
-        // Light pass: fixed chunks of paths, concatenated in order.
-        let chunks: Vec<LightChunk> = (0..paths)
-            .into_par_iter()
-            .step_by(LIGHT_CHUNK)
-            .map(|start| {
-                let mut chunk = LightChunk::default();
-                for index in start..(start + LIGHT_CHUNK).min(paths) {
-                    self.trace_light_path(&w, iteration, index, &mut chunk);
-                    chunk.ends.push(chunk.vertices.len() as u32);
-                }
-                chunk
-            })
-            .collect();
+        let chunks = self.light_pass(&w, iteration, frame.len());
         let mut stats = IterationStats::default();
         let light = LightPaths::concatenate(chunks, frame, &mut stats);
         self.stored_vertices = light.vertices.len();
-        let grid = self.modes.vm.then(|| {
-            let positions: Vec<Vec3> = light.vertices.iter().map(|v| v.position).collect();
-            HashGrid::build(&positions, w.radius)
-        });
+        // The grid's and the density map's input.
+        let positions: Vec<Vec3> = if self.modes.vm {
+            light.vertices.iter().map(|v| v.position).collect()
+        } else {
+            Vec::new()
+        };
+        let grid = self.modes.vm.then(|| HashGrid::build(&positions, w.radius));
         // Eye pass: one sub-path per pixel, each connecting to its own light sub-path.
         let pass = EyePass {
             w,
@@ -675,6 +743,12 @@ impl Integrator for VertexCm<'_> {
             .reduce(IterationStats::default, |a, b| a + b);
         let stats = stats + eye_stats;
         self.upg = self.upg + stats.upg;
+        // Filled after the eye pass, so every technique of this iteration saw the same map.
+        if let Some(map) = &mut self.density {
+            if map.is_filling() && u64::from(map.iterations()) == iteration {
+                map.insert(&positions);
+            }
+        }
         stats
     }
 
@@ -696,6 +770,9 @@ impl Integrator for VertexCm<'_> {
         }
         if self.modes.gather != Gather::Density {
             stats.extend(self.upg.statistics());
+        }
+        if let Some(map) = &self.density {
+            stats.extend(map.statistics());
         }
         stats
     }

@@ -1,6 +1,6 @@
 //! Tools that work on rendered files (000 sec. 3.4 and Appendix A), one library call per
 //! `vmerge` subcommand:
-//! - compare: [`average`], [`errors`], [`diff`];
+//! - compare: [`average`], [`errors`], [`relative_mse`], [`diff`];
 //! - merge: [`merge`] renders of one scene made with different seeds;
 //! - convert: [`bake`] to a plain EXR, [`strip`] the error series;
 //! - inspect: [`time`], [`metadata`], [`measurements`], [`traces`];
@@ -17,7 +17,7 @@ mod inspect;
 mod merge;
 mod plot;
 
-pub use compare::{average, diff, errors};
+pub use compare::{average, diff, errors, relative_mse};
 pub use convert::{bake, strip};
 pub use inspect::{measurements, metadata, time, traces};
 pub use merge::{merge, MERGED_SEEDS};

@@ -7,7 +7,7 @@
 //! there like a density-estimate merge with its own eta_j.
 
 use super::super::connection::Connection;
-use super::super::mis::{Gather, Neighbour, VcmVertex, VcmWeights, VmHere};
+use super::super::mis::{Gather, Neighbour, VcmVertex, VcmWeights, VmHere, NO_DENSITY};
 use super::super::subpath::{EyeVertex, LightVertex, SubPath};
 use super::super::IterationStats;
 use super::acceptance::{AngularBound, Estimator, Outcome, StoredVerticesOnly, TentativeTracer};
@@ -100,9 +100,9 @@ impl<'s> UpgMerges<'s> {
             let weight = w.merge(
                 &light,
                 &state.mis_at(w, link.to_eval.rev_pdf_w),
-                link.to_eval.pdf_w,
-                link.to_eval.rev_pdf_w,
+                (link.to_eval.pdf_w, link.to_eval.rev_pdf_w),
                 w.eta(light.d_vcm),
+                NO_DENSITY,
             );
             let roulette = self.roulette_probability(&q_bsdf, q.path_length);
             tentative.push(bound, q.throughput * link.value * (weight / roulette));
@@ -158,9 +158,9 @@ impl<'s> UpgMerges<'s> {
             let weight = w.merge(
                 &photon.mis_at(w, link.to_eval.rev_pdf_w),
                 &eye,
-                link.to_eval.rev_pdf_w,
-                link.to_eval.pdf_w,
+                (link.to_eval.rev_pdf_w, link.to_eval.pdf_w),
                 w.eta(eye.d_vcm),
+                NO_DENSITY,
             );
             let roulette = self.roulette_probability(&prev.bsdf, prev.path_length);
             tentative.push(
@@ -223,7 +223,7 @@ fn carry(w: &VcmWeights, c: &Connection, at_from: VcmVertex, merge_at_from: VmHe
         c.from_eval.pdf_w,
         c.from_eval.rev_pdf_w,
         false,
-        merge_at_from == VmHere::Valid,
+        (merge_at_from == VmHere::Valid, 1.0),
     );
     w.arrive(&mut v, c.distance, c.cos_to, true);
     v
