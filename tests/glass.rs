@@ -16,7 +16,7 @@ use vmerge::color::Rgb;
 use vmerge::integrator::Technique;
 use vmerge::render::RenderOptions;
 use vmerge::sampling::Rng;
-use vmerge::scene::{self, Camera, CameraDesc, LoadOptions, RenderDefaults, Scene, SceneParts};
+use vmerge::scene::{self, Camera, CameraDesc, FovAxis, LoadOptions, RenderDefaults, Scene, SceneParts};
 
 const IOR: f64 = 1.5;
 const MAX_PATH_LENGTH: u32 = 10;
@@ -124,6 +124,8 @@ fn pane_scene(accel: AccelKind) -> Scene {
             look_at: -Vec3::Z,
             up: Vec3::Y,
             fov_deg: 60.0,
+            fov_axis: FovAxis::Vertical,
+            mirrored: false,
         }],
         defaults: RenderDefaults {
             resolution: [32, 32],
