@@ -13,10 +13,12 @@ use std::path::{Path, PathBuf};
 use vmerge::accel::{AccelKind, Geometry};
 use vmerge::bsdf::{Material, MaterialKind};
 use vmerge::color::Rgb;
-use vmerge::integrator::Technique;
-use vmerge::render::RenderOptions;
+use vmerge::options::RenderOptions;
+use vmerge::options::Technique;
 use vmerge::sampling::Rng;
-use vmerge::scene::{self, Camera, CameraDesc, FovAxis, LoadOptions, RenderDefaults, Scene, SceneParts};
+use vmerge::scene::{
+    self, Camera, CameraDesc, FovAxis, LoadOptions, RenderDefaults, Scene, SceneParts,
+};
 
 const IOR: f64 = 1.5;
 const MAX_PATH_LENGTH: u32 = 10;
