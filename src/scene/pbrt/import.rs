@@ -350,13 +350,12 @@ impl Importer {
                 };
                 match self.stack.pop() {
                     None => return Err(self.at(loc, format!("unbalanced {name}: nothing is open"))),
-                    Some((open, open_loc, saved)) if open == block => {
+                    Some((open, _, saved)) if open == block => {
                         if block == Block::Attribute {
                             self.state = saved;
                         } else {
                             self.state.ctm = saved.ctm;
                         }
-                        let _ = open_loc;
                     }
                     Some((open, open_loc, _)) => {
                         let what = match open {
@@ -726,10 +725,7 @@ impl Importer {
                 if p.bool("invert", false).map_err(&pe)? {
                     self.warn(loc, format!("Texture '{name}': invert ignored"));
                 }
-                for known in ["filter", "wrap", "encoding", "maxanisotropy"] {
-                    let _ = p.string(known);
-                    let _ = p.float(known, 0.0);
-                }
+                p.mark_used(&["filter", "wrap", "encoding", "maxanisotropy"]);
                 let path = self.resolve(file);
                 if path.is_file() {
                     Tex::Image {
@@ -927,11 +923,8 @@ impl Importer {
                 let eta = self.float_param(loc, p, "eta", 1.5)?.unwrap_or(1.5);
                 let alpha = self.alpha(loc, p)?;
                 let f0 = dielectric_f0(eta);
-                for ignored in ["thickness", "g", "maxdepth", "nsamples"] {
-                    let _ = p.float(ignored, 0.0);
-                    let _ = p.int(ignored, 0);
-                }
-                let _ = p.spectrum("albedo");
+                // The coating's layer parameters have no counterpart in Phong.
+                p.mark_used(&["thickness", "g", "maxdepth", "nsamples", "albedo"]);
                 let exponent = phong_exponent(alpha);
                 notes.push(format!(
                     "coateddiffuse as Phong: kd = reflectance x (1 - F0), ks = F0 = {f0:.3}, exponent {exponent:.0} from alpha {alpha}"
@@ -991,7 +984,7 @@ impl Importer {
                         None => 1.5,
                     }
                 };
-                if !(eta > 0.0) {
+                if eta.is_nan() || eta <= 0.0 {
                     return Err(self.at(loc, format!("dielectric eta {eta} is not positive")));
                 }
                 if self.alpha(loc, p)? > 0.0 {
@@ -1005,7 +998,7 @@ impl Importer {
             "diffusetransmission" => {
                 let reflectance = albedo(self, "reflectance", Rgb::splat(0.25))?;
                 let scale = p.float("scale", 1.0).map_err(&pe)?;
-                let _ = p.spectrum_texture("transmittance");
+                p.mark_used(&["transmittance"]);
                 notes.push(
                     "diffusetransmission as lambert of its reflectance (no transmission)".into(),
                 );
@@ -1028,8 +1021,7 @@ impl Importer {
         };
         for ignored in ["displacement", "normalmap"] {
             if p.params.iter().any(|q| q.name == ignored) {
-                let _ = p.string(ignored);
-                let _ = p.float_texture(ignored);
+                p.mark_used(&[ignored]);
                 notes.push(format!("{ignored} ignored"));
             }
         }
@@ -1251,15 +1243,11 @@ impl Importer {
                     .map_err(&pe)?
                     .ok_or_else(|| self.at(loc, "Shape plymesh without a filename"))?;
                 let path = self.resolve(file);
-                for ignored in ["displacement", "edgelength"] {
-                    let _ = p.float_texture(ignored);
-                    let _ = p.float(ignored, 0.0);
-                }
                 ShapeKind::Mesh(Arc::new(MeshSource::Ply(path)))
             }
             "sphere" => {
                 let radius = p.float("radius", 1.0).map_err(&pe)?;
-                if !(radius > 0.0) {
+                if radius.is_nan() || radius <= 0.0 {
                     return Err(self.at(
                         loc,
                         format!("Shape sphere: radius {radius} is not positive"),
@@ -1283,7 +1271,7 @@ impl Importer {
             other => return Err(self.at(loc, format!("unknown shape '{other}'"))),
         };
         if p.params.iter().any(|q| q.name == "alpha") {
-            let _ = p.float_texture("alpha");
+            p.mark_used(&["alpha"]);
             self.warn(loc, "Shape: alpha (cut-outs) ignored");
         }
         let material = self.shape_material();
@@ -1577,9 +1565,8 @@ fn inline_mesh(p: &ParamList, bilinear: bool) -> Result<PlyMesh, ParseError> {
             .collect(),
         None => Vec::new(),
     };
-    for unused in ["S", "faceIndices"] {
-        let _ = p.nums(unused, &[ParamType::Vector3, ParamType::Integer]);
-    }
+    // Per-face indices only matter to pbrt's ptex lookups.
+    p.mark_used(&["faceIndices"]);
     let triangles = if bilinear {
         indices
             .chunks_exact(4)

@@ -41,11 +41,11 @@ pub fn conductor_f0(eta: Rgb, k: Rgb) -> Rgb {
 pub fn named_spectrum(name: &str) -> Option<Rgb> {
     Some(match name {
         "metal-Ag-eta" => Rgb::new(0.155_265, 0.116_723, 0.138_381),
-        "metal-Ag-k" => Rgb::new(4.828_343, 3.122_246, 2.146_950),
-        "metal-Al-eta" => Rgb::new(1.657_460, 0.880_369, 0.521_229),
+        "metal-Ag-k" => Rgb::new(4.828_343, 3.122_246, 2.146_95),
+        "metal-Al-eta" => Rgb::new(1.657_46, 0.880_369, 0.521_229),
         "metal-Al-k" => Rgb::new(9.223_869, 6.269_523, 4.837_001),
         "metal-Au-eta" => Rgb::new(0.143_119, 0.374_957, 1.442_479),
-        "metal-Au-k" => Rgb::new(3.983_160, 2.385_721, 1.603_215),
+        "metal-Au-k" => Rgb::new(3.983_16, 2.385_721, 1.603_215),
         "metal-Cu-eta" => Rgb::new(0.200_438, 0.924_033, 1.102_212),
         "metal-Cu-k" => Rgb::new(3.912_949, 2.452_848, 2.142_188),
         "metal-CuZn-eta" => Rgb::new(0.444, 0.527, 1.094),

@@ -142,6 +142,15 @@ impl ParamList {
         self.params.iter().filter(|p| !p.used.get())
     }
 
+    /// Marks parameters vmerge knows and deliberately does not use, so they are not reported.
+    pub fn mark_used(&self, names: &[&str]) {
+        for p in &self.params {
+            if names.contains(&p.name.as_str()) {
+                p.used.set(true);
+            }
+        }
+    }
+
     pub fn mark_all_used(&self) {
         for p in &self.params {
             p.used.set(true);
@@ -667,7 +676,7 @@ fn check(ty: ParamType, name: &str, values: Vec<Value>, line: u32) -> Result<Val
     };
     let n = values.len();
     let multiple = |k: usize| -> Result<(), ParseError> {
-        if n % k != 0 {
+        if !n.is_multiple_of(k) {
             return err(
                 line,
                 format!("{what} needs a multiple of {k} numbers, got {n}"),
