@@ -8,12 +8,15 @@
 pub mod accel;
 pub mod bsdf;
 pub mod color;
+pub mod files;
 pub mod film;
 pub mod frame;
 pub mod hashgrid;
 pub mod integrator;
 pub mod light;
+pub mod memory;
 pub mod options;
+pub mod preview;
 pub mod render;
 pub mod sampling;
 pub mod scene;

@@ -3,6 +3,7 @@
 use anyhow::{Context, Result};
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -68,6 +69,22 @@ enum Command {
         #[arg(long)]
         traces: bool,
     },
+    /// Serve a page showing renders: exposure, metadata, error chart, split comparison.
+    View {
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Where to serve (loopback unless told otherwise).
+        #[arg(long, value_name = "ADDR", default_value = vmerge::preview::DEFAULT_ADDRESS)]
+        address: SocketAddr,
+    },
+}
+
+/// `--preview [ADDR]`: a live page of the render at ADDR (default: loopback, any free port).
+#[derive(Args)]
+struct PreviewArg {
+    /// Serve a live page of the render (default 127.0.0.1:0: loopback, a free port; the URL is printed).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = vmerge::preview::DEFAULT_ADDRESS)]
+    preview: Option<SocketAddr>,
 }
 
 #[derive(Args)]
@@ -113,6 +130,11 @@ struct RenderArgs {
     /// Clamp Phong materials with kd + ks > 1 instead of rejecting the scene.
     #[arg(long)]
     lenient: bool,
+    /// The memory the render may use, e.g. 8G (default: what the machine has available).
+    #[arg(long, value_parser = vmerge::memory::parse_size)]
+    memory_limit: Option<u64>,
+    #[command(flatten)]
+    preview: PreviewArg,
     #[command(flatten)]
     technique_options: TechniqueArgs,
 }
@@ -184,6 +206,11 @@ struct ContinueArgs {
     snapshot: Option<Duration>,
     #[arg(long)]
     no_png: bool,
+    /// The memory the render may use, e.g. 8G (default: what the machine has available).
+    #[arg(long, value_parser = vmerge::memory::parse_size)]
+    memory_limit: Option<u64>,
+    #[command(flatten)]
+    preview: PreviewArg,
 }
 
 /// The techniques by name, with their descriptions in `--help`.
@@ -232,7 +259,7 @@ fn parse_duration(s: &str) -> Result<Duration, String> {
     if !(seconds.is_finite() && seconds >= 0.0) {
         return Err(format!("'{s}' is not a non-negative duration"));
     }
-    Ok(Duration::from_secs_f64(seconds))
+    Duration::try_from_secs_f64(seconds).map_err(|_| format!("'{s}' is too long a duration"))
 }
 
 fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
@@ -322,11 +349,13 @@ fn run(cli: Cli) -> Result<()> {
             inputs,
             traces,
         } => Ok(tools::plot(&output, &inputs, traces)?),
+        Command::View { files, address } => view(&files, address),
     }
 }
 
 fn set_threads(threads: Option<usize>) -> Result<()> {
     if let Some(n) = threads {
+        vmerge::options::validate_threads(n)?;
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global()
@@ -336,6 +365,7 @@ fn set_threads(threads: Option<usize>) -> Result<()> {
 }
 
 fn render(args: RenderArgs) -> Result<()> {
+    vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
     let t = args.technique_options;
     let options = RenderOptions {
@@ -367,6 +397,7 @@ fn render(args: RenderArgs) -> Result<()> {
         snapshot_every: args.snapshot,
         reference: args.reference,
         traces: args.traces,
+        memory_limit: args.memory_limit,
     };
     let stop = StopAfter {
         iterations: args.iterations,
@@ -376,7 +407,7 @@ fn render(args: RenderArgs) -> Result<()> {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
     // Checked again by the library; here before the scene loads, so a mistake costs nothing.
-    setup.options.validate()?;
+    setup.check()?;
     let loading = std::time::Instant::now();
     let scene = setup.load_scene()?;
     eprintln!(
@@ -388,29 +419,55 @@ fn render(args: RenderArgs) -> Result<()> {
         scene.lights.len()
     );
     let job = setup.job(&scene)?;
-    run_job(job, stop)
+    run_job(job, stop, args.preview.preview)
 }
 
 fn resume(args: ContinueArgs) -> Result<()> {
+    vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
     let (film, metadata) = vmerge::film::exr::read_render(&args.input)?;
     let scene = vmerge::render::load_for_continue(&metadata, args.accel, args.force)?;
     let output = args.output.unwrap_or(args.input);
-    let job =
-        vmerge::render::continued_job(&scene, film, metadata, output, !args.no_png, args.snapshot)?;
+    let job = vmerge::render::continued_job(
+        &scene,
+        film,
+        metadata,
+        output,
+        !args.no_png,
+        args.snapshot,
+        args.memory_limit,
+    )?;
     let stop = StopAfter {
-        iterations: args.iterations.map(|n| job.film.iterations + n),
+        // The library refuses a total beyond its limit, which saturating keeps above it.
+        iterations: args
+            .iterations
+            .map(|n| job.film.iterations.saturating_add(n)),
         time: args.time,
     };
     if stop.iterations.is_none() && stop.time.is_none() {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
-    run_job(job, stop)
+    run_job(job, stop, args.preview.preview)
 }
 
 use vmerge::render::{RenderJob, StopAfter};
 
-fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
+fn view(files: &[PathBuf], address: SocketAddr) -> Result<()> {
+    let viewer = vmerge::preview::Viewer::load(files)?;
+    let server = viewer.serve(address)?;
+    let (stop, stopped) = std::sync::mpsc::channel();
+    ctrlc::set_handler(move || {
+        // The receiver lives until main returns.
+        let _ = stop.send(());
+    })
+    .context("installing the signal handler")?;
+    eprintln!("view at http://{}/ (Ctrl-C stops)", server.address());
+    // Either a signal, or the handler is gone: stop in both cases.
+    let _ = stopped.recv();
+    Ok(())
+}
+
+fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> Result<()> {
     let flag = vmerge::render::StopFlag::default();
     let handler_flag = flag.clone();
     ctrlc::set_handler(move || {
@@ -425,7 +482,16 @@ fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
         indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos} it {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    job.run(stop, &flag, |p| {
+    let mut preview = preview
+        .map(|address| vmerge::preview::LivePreview::start(address, &job, stop))
+        .transpose()?;
+    if let Some(p) = &preview {
+        eprintln!("preview at http://{}/", p.address());
+    }
+    let observer = preview
+        .as_mut()
+        .map(|p| p as &mut dyn vmerge::render::Observer);
+    job.run_observed(stop, &flag, observer, |p| {
         bar.set_position(p.iterations);
         let mut msg = format!(
             "{:.2} Msamples/s, {:.2} Mrays/s",
@@ -447,6 +513,8 @@ fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
         }
         bar.set_message(msg);
     })?;
+    // The page stops with the render.
+    drop(preview);
     bar.finish();
     eprintln!(
         "wrote {} ({} iterations, {:.1} s{})",
@@ -477,11 +545,17 @@ fn is_input_error(e: &anyhow::Error) -> bool {
         } else if let Some(r) = cause.downcast_ref::<RenderError>() {
             match r {
                 RenderError::Film(f) => film(f),
+                // The system failed to take the image, not the user's input.
+                RenderError::WrittenElsewhere { .. } | RenderError::Lost { .. } => false,
                 _ => true,
             }
         } else {
             cause.downcast_ref::<vmerge::scene::SceneError>().is_some()
                 || cause.downcast_ref::<OptionError>().is_some()
+                || cause.downcast_ref::<vmerge::files::FileError>().is_some()
+                || cause
+                    .downcast_ref::<vmerge::memory::MemoryError>()
+                    .is_some()
         }
     })
 }

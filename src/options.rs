@@ -10,6 +10,7 @@
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Duration;
 use thiserror::Error;
 
 /// The rendering techniques.
@@ -375,6 +376,88 @@ pub static RULES: &[OptionRule] = &[
     },
 ];
 
+/// The most iterations a render may reach: far beyond any real render, and low enough that the
+/// count of a continued render cannot wrap.
+pub const MAX_ITERATIONS: u64 = 1 << 48;
+
+/// The longest `time` or `snapshot` interval: 100 years.
+pub const MAX_DURATION: Duration = Duration::from_secs(100 * 365 * 24 * 3600);
+
+/// The stop conditions and the snapshot interval: not part of the image (so not in
+/// [`RenderOptions`]), checked like the table's options. `iterations` counts the iterations
+/// the render ends with, a continued render's earlier ones included.
+pub fn validate_run(
+    iterations: Option<u64>,
+    time: Option<Duration>,
+    snapshot: Option<Duration>,
+) -> Result<(), OptionError> {
+    if let Some(n) = iterations {
+        if n == 0 {
+            return Err(OptionError::OutOfRange {
+                option: OptionName("iterations"),
+                value: "0".into(),
+                expected: "at least 1 iteration",
+            });
+        }
+        if n > MAX_ITERATIONS {
+            return Err(OptionError::Above {
+                option: OptionName("iterations"),
+                value: n,
+                limit: MAX_ITERATIONS,
+                why: "iterations in total, a continued render's earlier ones included".into(),
+            });
+        }
+    }
+    for (name, value) in [("time", time), ("snapshot", snapshot)] {
+        match value {
+            Some(d) if d.is_zero() => {
+                return Err(OptionError::OutOfRange {
+                    option: OptionName(name),
+                    value: "0s".into(),
+                    expected: "a duration > 0 (e.g. 90s, 10m, 2h)",
+                })
+            }
+            Some(d) if d > MAX_DURATION => {
+                return Err(OptionError::Above {
+                    option: OptionName(name),
+                    value: d.as_secs(),
+                    limit: MAX_DURATION.as_secs(),
+                    why: "seconds, 100 years".into(),
+                })
+            }
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
+/// The most worker threads a render may ask for: 4 per core of this machine. More only
+/// multiplies per-thread buffers; the image does not depend on the count.
+pub fn max_threads() -> usize {
+    4 * std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// A thread count of at least 1 and at most [`max_threads`].
+pub fn validate_threads(threads: usize) -> Result<(), OptionError> {
+    if threads == 0 {
+        return Err(OptionError::OutOfRange {
+            option: OptionName("threads"),
+            value: "0".into(),
+            expected: "at least 1 thread",
+        });
+    }
+    let limit = max_threads();
+    if threads > limit {
+        return Err(OptionError::Above {
+            option: OptionName("threads"),
+            value: threads as u64,
+            limit: limit as u64,
+            why: format!("4 per core; this machine has {}", limit / 4),
+        });
+    }
+    Ok(())
+}
+
 /// Whether [`OptionName`]s are written as command-line flags; set once by the command line.
 static SPELL_AS_FLAGS: AtomicBool = AtomicBool::new(false);
 
@@ -415,6 +498,15 @@ pub enum OptionError {
         value: String,
         expected: &'static str,
     },
+    #[error("{option} {value}: at most {limit} ({why})")]
+    Above {
+        option: OptionName,
+        value: u64,
+        limit: u64,
+        why: String,
+    },
+    #[error("{option}: {message}")]
+    Needs { option: OptionName, message: String },
 }
 
 fn names(techniques: &[Technique]) -> String {
@@ -471,6 +563,20 @@ mod tests {
                 ..
             })
         ));
+    }
+
+    #[test]
+    fn stop_conditions_and_threads_have_ranges() {
+        let second = Some(Duration::from_secs(1));
+        assert_eq!(validate_run(Some(1), second, second), Ok(()));
+        assert!(validate_run(Some(0), None, None).is_err());
+        assert!(validate_run(Some(MAX_ITERATIONS + 1), None, None).is_err());
+        assert!(validate_run(None, Some(Duration::ZERO), None).is_err());
+        assert!(validate_run(None, second, Some(Duration::ZERO)).is_err());
+        assert!(validate_run(None, Some(MAX_DURATION * 2), None).is_err());
+        assert_eq!(validate_threads(1), Ok(()));
+        assert!(validate_threads(0).is_err());
+        assert!(validate_threads(max_threads() + 1).is_err());
     }
 
     #[test]

@@ -30,7 +30,7 @@ fn film(width: u32, height: u32, seed: u64) -> Film {
 
 fn metadata() -> Metadata {
     let options = RenderOptions {
-        technique: Technique::Bpt,
+        technique: Technique::Vcm,
         seed: 12345678901234567890,
         resolution: Some([24, 16]),
         radius: Some(0.02),

@@ -122,6 +122,17 @@ pub struct Received {
 }
 
 impl Light {
+    /// What kind of light it is, in words.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Light::Triangle { .. } => "an emissive triangle",
+            Light::Sphere { .. } => "an emissive sphere",
+            Light::Point { .. } => "a point light",
+            Light::Directional { .. } => "a directional light",
+            Light::Sky { .. } => "the sky",
+        }
+    }
+
     /// A delta light cannot be hit by a ray (point, directional).
     pub fn is_delta(&self) -> bool {
         matches!(self, Light::Point { .. } | Light::Directional { .. })
@@ -471,6 +482,21 @@ impl Lights {
 
     pub fn is_empty(&self) -> bool {
         self.selection.is_none()
+    }
+
+    /// Why light selection is impossible although there are lights: the first light whose
+    /// power is not a finite number (the selection's sum is f64 and does not overflow).
+    pub fn power_overflow(&self) -> Option<String> {
+        let (i, light) = self
+            .lights
+            .iter()
+            .enumerate()
+            .find(|(_, l)| !l.power().is_finite())?;
+        Some(format!(
+            "light {i} ({}) emits {} W",
+            light.kind(),
+            light.power()
+        ))
     }
 
     pub fn len(&self) -> usize {

@@ -3,10 +3,12 @@
 //! Everything is validated before anything is built: each problem is one [`SceneError`] naming
 //! the file and the entry. Only geometric normals are used; OBJ shading normals are ignored.
 
-use super::{CameraDesc, FovAxis, RenderDefaults, Scene, SceneError, SceneParts};
+use super::wavefront;
+use super::{CameraDesc, FovAxis, RenderDefaults, Scene, SceneError, SceneParts, MAX_COORDINATE};
 use crate::accel::{AccelKind, Geometry, Sphere};
 use crate::bsdf::{Material, MaterialKind};
 use crate::color::Rgb;
+use crate::files::{self, Kind};
 use crate::light::Light;
 use crate::light::SkyDesc;
 use crate::options::OptionName;
@@ -15,6 +17,11 @@ use serde::Deserialize;
 use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
+
+/// The camera's vertical field of view, in degrees: narrower makes the image plane so far
+/// that rays lose their direction in f32, wider so near that pixels lose their size.
+const MIN_FOV: f32 = 0.01;
+const MAX_FOV: f32 = 179.0;
 
 #[derive(Clone, Copy, Debug)]
 pub struct LoadOptions {
@@ -139,14 +146,14 @@ pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, Scen
     if super::pbrt::is_pbrt(path) {
         return super::pbrt::load_parts(path, options);
     }
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+    let text = files::read_text(path, Kind::Scene)?;
+    let parse_error = |e: toml::de::Error| SceneError::Parse {
         file: path.to_path_buf(),
-        source,
-    })?;
-    let file: SceneFile = toml::from_str(&text).map_err(|e| SceneError::Parse {
-        file: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+        // TOML's messages quote the offending line, which may be any length.
+        message: files::shorten_lines(&e.to_string(), 200),
+    };
+    check_array_lengths(path, "", &text.parse::<toml::Table>().map_err(parse_error)?)?;
+    let file: SceneFile = toml::from_str(&text).map_err(parse_error)?;
     let mut loader = Loader {
         path: path.to_path_buf(),
         dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
@@ -158,9 +165,62 @@ pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, Scen
         triangle_materials: Vec::new(),
         sphere_materials: Vec::new(),
         dropped_triangles: 0,
+        inputs: vec![path.to_path_buf()],
     };
     loader.hasher.update(text.as_bytes());
     loader.build(file)
+}
+
+/// The length of every fixed-size array of the scene file, by key.
+const ARRAY_LENGTHS: &[(&str, usize)] = &[
+    ("resolution", 2),
+    ("position", 3),
+    ("look_at", 3),
+    ("up", 3),
+    ("center", 3),
+    ("rotate_deg", 3),
+    ("translate", 3),
+    ("kd", 3),
+    ("ks", 3),
+    ("emission", 3),
+    ("intensity", 3),
+    ("direction", 3),
+    ("irradiance", 3),
+    ("horizon", 3),
+    ("zenith", 3),
+];
+
+/// Arrays of the wrong length are refused: the TOML reader would fill `[f32; 3]` from the
+/// first three numbers of a longer array and drop the rest unseen.
+fn check_array_lengths(path: &Path, at: &str, table: &toml::Table) -> Result<(), SceneError> {
+    for (key, value) in table {
+        let entry = if at.is_empty() {
+            key.clone()
+        } else {
+            format!("{at}.{key}")
+        };
+        match value {
+            toml::Value::Table(t) => check_array_lengths(path, &entry, t)?,
+            toml::Value::Array(items) => {
+                if let Some(&(_, n)) = ARRAY_LENGTHS.iter().find(|(k, _)| k == key) {
+                    if items.len() != n {
+                        return Err(SceneError::Invalid {
+                            file: path.to_path_buf(),
+                            entry,
+                            message: format!("expected {n} numbers, found {}", items.len()),
+                        });
+                    }
+                }
+                for (i, item) in items.iter().enumerate() {
+                    if let toml::Value::Table(t) = item {
+                        check_array_lengths(path, &format!("{entry}[{i}]"), t)?;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 struct Loader {
@@ -174,6 +234,8 @@ struct Loader {
     triangle_materials: Vec<u32>,
     sphere_materials: Vec<u32>,
     dropped_triangles: usize,
+    /// Every file read, for the check that an output overwrites none of them.
+    inputs: Vec<PathBuf>,
 }
 
 impl Loader {
@@ -209,6 +271,32 @@ impl Loader {
         }
     }
 
+    /// A position: finite and within +-[`MAX_COORDINATE`].
+    fn point(&self, entry: &str, v: [f32; 3]) -> Result<Vec3, SceneError> {
+        let p = self.vec3(entry, v)?;
+        if p.abs().max_element() > MAX_COORDINATE {
+            return Err(self.invalid(
+                entry,
+                format!(
+                    "{v:?} lies beyond +-{MAX_COORDINATE:e}, where f32 positions lose their precision"
+                ),
+            ));
+        }
+        Ok(p)
+    }
+
+    /// A reflectance: each component in [0, 1] (more would create energy).
+    fn albedo(&self, entry: &str, v: [f32; 3]) -> Result<Rgb, SceneError> {
+        let c = self.color(entry, v)?;
+        if c.max_component() > 1.0 {
+            return Err(self.invalid(
+                entry,
+                format!("{v:?} has a component above 1 and would create energy"),
+            ));
+        }
+        Ok(c)
+    }
+
     fn build(mut self, file: SceneFile) -> Result<SceneParts, SceneError> {
         let defaults = self.render_defaults(&file.render)?;
         let sky = match &file.render.sky {
@@ -241,8 +329,9 @@ impl Loader {
         }
         for (i, s) in file.sphere.iter().enumerate() {
             let entry = format!("sphere[{i}]");
-            let center = self.vec3(&format!("{entry}.center"), s.center)?;
+            let center = self.point(&format!("{entry}.center"), s.center)?;
             let radius = self.positive(&format!("{entry}.radius"), s.radius)?;
+            self.point(&format!("{entry}.radius"), [radius; 3])?;
             let material = self.material_index(&format!("{entry}.material"), &s.material)?;
             self.geometry.spheres.push(Sphere { center, radius });
             self.sphere_materials.push(material);
@@ -283,6 +372,7 @@ impl Loader {
             cameras,
             defaults,
             dropped_triangles: self.dropped_triangles,
+            inputs: self.inputs,
         })
     }
 
@@ -314,13 +404,13 @@ impl Loader {
     fn camera(&self, i: usize, c: &CameraTable) -> Result<CameraDesc, SceneError> {
         let name = c.name.clone().unwrap_or_else(|| i.to_string());
         let entry = format!("camera[{i}] ({name})");
-        let position = self.vec3(&format!("{entry}.position"), c.position)?;
-        let look_at = self.vec3(&format!("{entry}.look_at"), c.look_at)?;
+        let position = self.point(&format!("{entry}.position"), c.position)?;
+        let look_at = self.point(&format!("{entry}.look_at"), c.look_at)?;
         let up = self.direction(&format!("{entry}.up"), c.up)?;
-        if !(c.fov > 0.0 && c.fov < 180.0) {
+        if !(MIN_FOV..=MAX_FOV).contains(&c.fov) {
             return Err(self.invalid(
                 format!("{entry}.fov"),
-                format!("{} is not in (0, 180) degrees", c.fov),
+                format!("{} is not in [{MIN_FOV}, {MAX_FOV}] degrees", c.fov),
             ));
         }
         let forward = look_at - position;
@@ -376,11 +466,11 @@ impl Loader {
             None => (Rgb::splat(0.8), Rgb::BLACK, 1.0, 1.5),
         };
         let kd =
-            t.kd.map(|v| self.color(&format!("{entry}.kd"), v))
+            t.kd.map(|v| self.albedo(&format!("{entry}.kd"), v))
                 .transpose()?
                 .unwrap_or(base_kd);
         let ks =
-            t.ks.map(|v| self.color(&format!("{entry}.ks"), v))
+            t.ks.map(|v| self.albedo(&format!("{entry}.ks"), v))
                 .transpose()?
                 .unwrap_or(base_ks);
         let exponent = t
@@ -462,46 +552,54 @@ impl Loader {
 
     fn mesh(&mut self, i: usize, mesh: &MeshTable) -> Result<(), SceneError> {
         let entry = format!("mesh[{i}]");
+        if mesh.file.as_os_str().is_empty() {
+            return Err(self.invalid(format!("{entry}.file"), "the path is empty"));
+        }
         let obj_path = self.dir.join(&mesh.file);
-        let bytes = std::fs::read(&obj_path).map_err(|source| SceneError::Io {
-            file: obj_path.clone(),
-            source,
-        })?;
+        let bytes = files::read(&obj_path, Kind::Obj)?;
+        self.inputs.push(obj_path.clone());
         self.hasher.update(&bytes);
         let load_options = tobj::LoadOptions {
             triangulate: true,
             single_index: false,
             ..Default::default()
         };
-        let (models, mtl) =
-            tobj::load_obj(&obj_path, &load_options).map_err(|e| SceneError::Parse {
-                file: obj_path.clone(),
-                message: format!("{entry}: {e}"),
-            })?;
-        let mtllib = mtllib_name(&bytes);
-        let mtl_materials = match (mtl, &mtllib) {
-            (Ok(materials), _) => materials,
-            (Err(e), Some(name)) => {
-                return Err(SceneError::Invalid {
-                    file: obj_path.parent().unwrap_or(Path::new("")).join(name),
-                    entry: format!("mtllib of {} ({entry})", obj_path.display()),
-                    message: format!("cannot load: {e}"),
-                })
-            }
-            (Err(_), None) => Vec::new(),
-        };
-        if let Some(name) = &mtllib {
-            let mtl_path = obj_path.parent().unwrap_or(Path::new("")).join(name);
-            if let Ok(text) = std::fs::read(&mtl_path) {
-                self.hasher.update(&text);
-                warn_unknown_mtl_statements(&mtl_path, &String::from_utf8_lossy(&text));
-            }
+        let obj = wavefront::load_obj(&obj_path, &bytes, &load_options, &entry)?;
+        for mtl in &obj.mtl_files {
+            self.hasher.update(&mtl.bytes);
+            self.inputs.push(mtl.path.clone());
+            warn_unknown_mtl_statements(&mtl.path, &String::from_utf8_lossy(&mtl.bytes));
         }
-        let mut indices = Vec::with_capacity(mtl_materials.len());
-        for m in &mtl_materials {
+        if mesh.material.is_none() {
+            let scene_materials: Vec<String> = self.by_name.keys().cloned().collect();
+            wavefront::warn_unknown_usemtl(&obj_path, &obj, &scene_materials);
+        }
+        let mut indices = Vec::with_capacity(obj.materials.len());
+        for m in &obj.materials {
             indices.push(self.mtl_material(&obj_path, m)?);
         }
-        self.mesh_models(&entry, &obj_path, mesh, &models, &indices)
+        let first_vertex = self.geometry.positions.len();
+        self.mesh_models(&entry, &obj_path, mesh, &obj.models, &indices)?;
+        self.check_extent(&entry, &obj_path, first_vertex)
+    }
+
+    /// Vertices (after the transform) must lie where f32 positions stay precise enough.
+    fn check_extent(&self, entry: &str, obj_path: &Path, first: usize) -> Result<(), SceneError> {
+        let positions = &self.geometry.positions[first..];
+        match positions
+            .iter()
+            .position(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)
+        {
+            Some(k) => Err(SceneError::Invalid {
+                file: obj_path.to_path_buf(),
+                entry: format!("{entry}, vertex {}", k + 1),
+                message: format!(
+                    "{} (after the transform) lies beyond +-{MAX_COORDINATE:e}, where f32 positions lose their precision",
+                    positions[k]
+                ),
+            }),
+            None => Ok(()),
+        }
     }
 
     fn mesh_models(
@@ -645,7 +743,7 @@ impl Loader {
         };
         match l.kind.as_str() {
             "point" => Ok(Light::Point {
-                position: self.vec3(&format!("{entry}.position"), need(l.position, "position")?)?,
+                position: self.point(&format!("{entry}.position"), need(l.position, "position")?)?,
                 intensity: self.color(&format!("{entry}.intensity"), need(l.intensity, "intensity")?)?,
             }),
             "directional" => Ok(Light::Directional {
@@ -668,15 +766,6 @@ fn kind_name(kind: &MaterialKind) -> &'static str {
         MaterialKind::Mirror { .. } => "mirror",
         MaterialKind::Glass { .. } => "glass",
     }
-}
-
-/// The first `mtllib` of an OBJ file.
-fn mtllib_name(obj: &[u8]) -> Option<String> {
-    String::from_utf8_lossy(obj).lines().find_map(|l| {
-        l.trim()
-            .strip_prefix("mtllib ")
-            .map(|s| s.trim().to_string())
-    })
 }
 
 /// MTL statements vmerge understands; anything else is reported once per file.

@@ -11,10 +11,16 @@ mod camera;
 mod error;
 mod load;
 pub mod pbrt;
+mod wavefront;
 
 pub use camera::{Camera, CameraDesc, FovAxis};
 pub use error::SceneError;
 pub use load::{load, load_parts, LoadOptions};
+
+/// The largest coordinate a scene may have: f32 positions there are still 1/16 apart, so a
+/// scene of ordinary size keeps its detail, while beyond it areas, distances and the default
+/// merge radius lose their meaning (and their squares overflow).
+pub const MAX_COORDINATE: f32 = 1e8;
 
 /// The `[render]` table: per-scene defaults, each overridable on the command line.
 #[derive(Clone, Debug, PartialEq)]
@@ -65,6 +71,8 @@ pub struct Scene {
     pub bounding_sphere: (Vec3, f32),
     /// Degenerate triangles dropped while loading.
     pub dropped_triangles: usize,
+    /// Every file the scene was read from (the scene file first).
+    pub inputs: Vec<PathBuf>,
 }
 
 /// Everything but the ray-query structure, from which [`Scene::build`] makes a scene; the
@@ -81,6 +89,7 @@ pub struct SceneParts {
     pub cameras: Vec<CameraDesc>,
     pub defaults: RenderDefaults,
     pub dropped_triangles: usize,
+    pub inputs: Vec<PathBuf>,
 }
 
 impl Scene {
@@ -101,6 +110,12 @@ impl Scene {
             parts.sky,
             (center, radius),
         );
+        if let Some(message) = lights.power_overflow() {
+            return Err(SceneError::LightPower {
+                file: parts.source.clone(),
+                message,
+            });
+        }
         if lights.is_empty() {
             return Err(SceneError::NoLights {
                 file: parts.source.clone(),
@@ -124,6 +139,7 @@ impl Scene {
             accel,
             bounding_sphere: (center, radius),
             dropped_triangles: parts.dropped_triangles,
+            inputs: parts.inputs,
         })
     }
 

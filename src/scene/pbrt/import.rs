@@ -8,9 +8,10 @@ use super::ply::{self, PlyMesh};
 use crate::accel::{Geometry, Sphere};
 use crate::bsdf::{Material, MaterialKind};
 use crate::color::Rgb;
+use crate::files::{self, FileError, Kind};
 use crate::light::{Light, SkyDesc};
 use crate::options::OptionName;
-use crate::scene::{CameraDesc, FovAxis, RenderDefaults, SceneError, SceneParts};
+use crate::scene::{CameraDesc, FovAxis, RenderDefaults, SceneError, SceneParts, MAX_COORDINATE};
 use glam::{DMat3, DMat4, DVec3, Vec3};
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
@@ -104,6 +105,8 @@ pub struct Importer {
     warnings: Vec<String>,
     /// Every file read, for locations; the main file first.
     files: Vec<PathBuf>,
+    /// Every file read (scene files, meshes, textures), which an output must not overwrite.
+    inputs: Vec<PathBuf>,
     canonical: Vec<PathBuf>,
     include_stack: Vec<usize>,
     /// Relative paths resolve against the main file's folder, as in pbrt.
@@ -147,6 +150,7 @@ pub fn import(path: &Path, lenient: bool) -> Result<Imported, SceneError> {
         lenient,
         warnings: Vec::new(),
         files: Vec::new(),
+        inputs: Vec::new(),
         canonical: Vec::new(),
         include_stack: Vec::new(),
         dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
@@ -244,17 +248,12 @@ impl Importer {
     }
 
     fn run_file(&mut self, path: &Path, from: Option<Loc>) -> Result<(), SceneError> {
-        let read_error = |source: std::io::Error| match from {
-            Some(loc) => self.at(
-                loc,
-                format!("cannot read included file {}: {source}", path.display()),
-            ),
-            None => SceneError::Io {
-                file: path.to_path_buf(),
-                source,
-            },
+        let read_error = |e: FileError| match from {
+            Some(loc) => self.at(loc, format!("cannot read included file {e}")),
+            None => SceneError::File(e),
         };
-        let canonical = path.canonicalize().map_err(read_error)?;
+        let text = files::read_text(path, Kind::Pbrt).map_err(read_error)?;
+        let canonical = path.canonicalize().unwrap_or_else(|_| path.to_path_buf());
         if let (Some(loc), Some(k)) = (
             from,
             self.include_stack
@@ -268,19 +267,10 @@ impl Importer {
             chain.push(path.display().to_string());
             return Err(self.at(loc, format!("Include loop: {}", chain.join(" -> "))));
         }
-        let text = std::fs::read_to_string(path).map_err(|source| match from {
-            Some(loc) => self.at(
-                loc,
-                format!("cannot read included file {}: {source}", path.display()),
-            ),
-            None => SceneError::Io {
-                file: path.to_path_buf(),
-                source,
-            },
-        })?;
         self.hasher.update(text.as_bytes());
         let file = self.files.len();
         self.files.push(path.to_path_buf());
+        self.inputs.push(path.to_path_buf());
         self.canonical.push(canonical);
         self.include_stack.push(file);
         let mut parser = Parser::new(&text);
@@ -727,7 +717,7 @@ impl Importer {
                 }
                 p.mark_used(&["filter", "wrap", "encoding", "maxanisotropy"]);
                 let path = self.resolve(file);
-                if path.is_file() {
+                if path.exists() {
                     Tex::Image {
                         path,
                         scale: Rgb::splat(scale),
@@ -1072,6 +1062,22 @@ impl Importer {
     /// Phong conserves energy only for kd + ks <= 1 (000 eq. 3.1): larger sums are scaled
     /// down per channel.
     fn conserve_energy(&self, notes: &mut Vec<String>, kind: MaterialKind) -> MaterialKind {
+        // Reflectances above 1 would create energy; pbrt clamps them to [0, 1] too.
+        let clamp = |notes: &mut Vec<String>, c: Rgb| {
+            if c.max_component() > 1.0 {
+                notes.push(format!("reflectance {:?} clamped to 1", round3(c)));
+            }
+            Rgb::new(c.r.min(1.0), c.g.min(1.0), c.b.min(1.0))
+        };
+        let kind = match kind {
+            MaterialKind::Lambert { kd } => MaterialKind::Lambert {
+                kd: clamp(notes, kd),
+            },
+            MaterialKind::Mirror { ks } => MaterialKind::Mirror {
+                ks: clamp(notes, ks),
+            },
+            other => other,
+        };
         let MaterialKind::Phong { kd, ks, exponent } = kind else {
             return kind;
         };
@@ -1189,7 +1195,7 @@ impl Importer {
                 match file {
                     Some(file) => {
                         let path = self.resolve(&file);
-                        if path.is_file() {
+                        if path.exists() {
                             self.env_image = Some((path, scale, ctm));
                         } else if self.lenient {
                             self.warn(
@@ -1304,42 +1310,42 @@ impl Importer {
         let loaded: Vec<_> = paths
             .par_iter()
             .map(|path| {
-                let bytes = std::fs::read(path)?;
-                let hash = Sha256::digest(&bytes);
-                Ok((hash, ply::parse(&bytes)))
+                if !path.exists() {
+                    return Err(None::<FileError>);
+                }
+                let bytes = files::read(path, Kind::Ply).map_err(Some)?;
+                Ok((Sha256::digest(&bytes), ply::parse(&bytes)))
             })
-            .collect::<Vec<Result<_, std::io::Error>>>();
+            .collect();
         let mut meshes: HashMap<PathBuf, Arc<PlyMesh>> = HashMap::new();
         for (path, result) in paths.iter().zip(loaded) {
             let loc = first_use[path];
             match result {
                 Ok((hash, Ok(mesh))) => {
                     self.hasher.update(hash);
+                    self.inputs.push(path.clone());
                     meshes.insert(path.clone(), Arc::new(mesh));
                 }
                 Ok((_, Err(message))) => {
                     return Err(self.at(loc, format!("Shape plymesh {}: {message}", path.display())))
                 }
-                Err(e) if self.lenient && e.kind() == std::io::ErrorKind::NotFound => {
+                Err(None) if self.lenient => {
                     self.warn(
                         loc,
                         format!("Shape plymesh: {} is missing; skipped", path.display()),
                     );
                 }
-                Err(e) => {
+                Err(None) => {
                     return Err(self.at(
                         loc,
                         format!(
-                            "Shape plymesh: cannot read {}: {e}{}",
+                            "Shape plymesh: cannot read {}: it is missing (use {} to skip it)",
                             path.display(),
-                            if e.kind() == std::io::ErrorKind::NotFound {
-                                format!(" (use {} to skip it)", OptionName("lenient"))
-                            } else {
-                                String::new()
-                            }
+                            OptionName("lenient")
                         ),
                     ))
                 }
+                Err(Some(e)) => return Err(self.at(loc, format!("Shape plymesh: {e}"))),
             }
         }
         let mut geometry = Geometry::default();
@@ -1367,10 +1373,15 @@ impl Importer {
                             "Shape sphere: ReverseOrientation ignored; emits outwards",
                         );
                     }
-                    geometry.spheres.push(Sphere {
-                        center: center.as_vec3(),
-                        radius: (radius * mean) as f32,
-                    });
+                    let (center, radius) = (center.as_vec3(), (radius * mean) as f32);
+                    let reach = center.abs().max_element() + radius;
+                    if !reach.is_finite() || reach > MAX_COORDINATE {
+                        return Err(self.at(
+                            s.loc,
+                            format!("Shape sphere: centre {center}, radius {radius} reaches beyond +-{MAX_COORDINATE:e}"),
+                        ));
+                    }
+                    geometry.spheres.push(Sphere { center, radius });
                     sphere_materials.push(s.material);
                 }
                 ShapeKind::Mesh(source) => {
@@ -1381,6 +1392,7 @@ impl Importer {
                             None => continue,
                         },
                     };
+                    let first = geometry.positions.len();
                     dropped += place_mesh(
                         &mesh,
                         s,
@@ -1388,6 +1400,15 @@ impl Importer {
                         &mut triangle_materials,
                         &mut shading,
                     );
+                    if let Some(p) = geometry.positions[first..]
+                        .iter()
+                        .find(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)
+                    {
+                        return Err(self.at(
+                            s.loc,
+                            format!("Shape: vertex {p} (after the transform) lies beyond +-{MAX_COORDINATE:e}, where f32 positions lose their precision"),
+                        ));
+                    }
                 }
             }
         }
@@ -1436,6 +1457,7 @@ impl Importer {
                 cameras: vec![camera],
                 defaults,
                 dropped_triangles: dropped,
+                inputs: self.inputs,
             },
             warnings: self.warnings,
         })
