@@ -20,4 +20,5 @@ pub mod preview;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod texture;
 pub mod tools;

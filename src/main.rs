@@ -68,6 +68,9 @@ enum Command {
         /// One chart per trace window.
         #[arg(long)]
         traces: bool,
+        /// The error drawn: mean absolute (mae) or RMS (rmse).
+        #[arg(long, value_parser = metric_parser(), default_value = "rmse")]
+        metric: Metric,
     },
     /// Serve a page showing renders: exposure, metadata, error chart, split comparison.
     View {
@@ -77,6 +80,8 @@ enum Command {
         #[arg(long, value_name = "ADDR", default_value = vmerge::preview::DEFAULT_ADDRESS)]
         address: SocketAddr,
     },
+    /// Run a plan of renders (or print its cells' commands), show its state, write its report.
+    Batch(BatchArgs),
 }
 
 /// `--preview [ADDR]`: a live page of the render at ADDR (default: loopback, any free port).
@@ -162,6 +167,9 @@ struct TechniqueArgs {
     /// Vertex connection only (vcm).
     #[arg(long)]
     no_vm: bool,
+    /// Render every triangle flat, ignoring the meshes' vertex normals.
+    #[arg(long)]
+    no_shading_normals: bool,
     /// bpt: render only the technique with S light and T eye vertices (T counts the camera).
     #[arg(long, value_name = "S,T", value_parser = parse_strategy)]
     strategy: Option<[u32; 2]>,
@@ -180,6 +188,12 @@ struct TechniqueArgs {
     /// vcm, bpm: iterations whose light vertices fill the density map.
     #[arg(long, default_value_t = DEFAULT.density_map_iterations)]
     density_map_iterations: u32,
+    /// Light sub-paths per iteration, n_VM (default: one per pixel).
+    #[arg(long)]
+    light_paths: Option<u32>,
+    /// Leave out paths of fewer segments (3 drops direct light).
+    #[arg(long, default_value_t = DEFAULT.min_path_length)]
+    min_path_length: u32,
 }
 
 #[derive(Args)]
@@ -348,8 +362,10 @@ fn run(cli: Cli) -> Result<()> {
             output,
             inputs,
             traces,
-        } => Ok(tools::plot(&output, &inputs, traces)?),
+            metric,
+        } => Ok(tools::plot(&output, &inputs, traces, metric)?),
         Command::View { files, address } => view(&files, address),
+        Command::Batch(args) => batch(args),
     }
 }
 
@@ -386,6 +402,9 @@ fn render(args: RenderArgs) -> Result<()> {
         upg_max_trials: t.upg_max_trials,
         density_mis: t.density_mis,
         density_map_iterations: t.density_map_iterations,
+        no_shading_normals: t.no_shading_normals,
+        light_paths: t.light_paths,
+        min_path_length: t.min_path_length,
     };
     let setup = vmerge::render::NewRender {
         scene: args.scene,
@@ -549,6 +568,8 @@ fn is_input_error(e: &anyhow::Error) -> bool {
                 RenderError::WrittenElsewhere { .. } | RenderError::Lost { .. } => false,
                 _ => true,
             }
+        } else if let Some(b) = cause.downcast_ref::<vmerge::tools::batch::BatchError>() {
+            b.is_input()
         } else {
             cause.downcast_ref::<vmerge::scene::SceneError>().is_some()
                 || cause.downcast_ref::<OptionError>().is_some()
@@ -558,4 +579,93 @@ fn is_input_error(e: &anyhow::Error) -> bool {
                     .is_some()
         }
     })
+}
+
+// `vmerge batch`: plans of renders (src/tools/batch).
+
+use vmerge::tools::batch::{self, Plan};
+use vmerge::tools::Metric;
+
+#[derive(Args)]
+#[command(args_conflicts_with_subcommands = true, arg_required_else_help = true)]
+struct BatchArgs {
+    #[command(subcommand)]
+    command: Option<BatchCommand>,
+    /// The plan (TOML): run every cell that needs it, references first.
+    plan: Option<PathBuf>,
+    /// List what would run, without running it.
+    #[arg(long)]
+    dry_run: bool,
+    /// Print one shell command per cell that can run now (for parallel -j N or xargs -P N);
+    /// run them, then ask again until nothing is printed.
+    #[arg(long, conflicts_with_all = ["dry_run", "slurm"])]
+    jobs: bool,
+    /// Write an sbatch --array script with one array task per cell that can run now.
+    #[arg(long, value_name = "FILE", conflicts_with = "dry_run")]
+    slurm: Option<PathBuf>,
+    #[arg(long, value_parser = accel_parser(), default_value = AccelKind::default_kind().name())]
+    accel: AccelKind,
+}
+
+#[derive(Subcommand)]
+enum BatchCommand {
+    /// Show each cell: done, partial, missing or stale.
+    Status { plan: PathBuf },
+    /// Write OUTPUT/report/index.html (thumbnails, tables, charts) from the cells that exist.
+    Report { plan: PathBuf },
+}
+
+fn metric_parser() -> impl TypedValueParser<Value = Metric> {
+    PossibleValuesParser::new(Metric::ALL.map(|m| m.name()))
+        .try_map(|name| Metric::from_name(&name).ok_or("no such metric"))
+}
+
+fn batch(args: BatchArgs) -> Result<()> {
+    let program = std::env::current_exe().context("finding the vmerge executable")?;
+    match (args.command, args.plan) {
+        (Some(BatchCommand::Status { plan }), _) => {
+            print!("{}", batch::status(&Plan::load(&plan)?))
+        }
+        (Some(BatchCommand::Report { plan }), _) => {
+            let index = batch::report(&Plan::load(&plan)?)?;
+            eprintln!("wrote {}", index.display());
+        }
+        (None, None) => anyhow::bail!("say which plan: vmerge batch PLAN.toml"),
+        (None, Some(file)) => {
+            let plan = Plan::load(&file)?;
+            if args.dry_run {
+                print!("{}", batch::dry_run(&plan));
+            } else if args.jobs {
+                let (lines, later) = batch::jobs(&plan, &program)?;
+                for line in &lines {
+                    println!("{line}");
+                }
+                if later > 0 {
+                    eprintln!("{later} more cells wait for these; ask again once they are done");
+                }
+            } else if let Some(script) = args.slurm {
+                let (tasks, later) = batch::slurm(&plan, &program, &script)?;
+                eprintln!("wrote {} ({tasks} array tasks)", script.display());
+                if later > 0 {
+                    eprintln!("{later} more cells wait for these; write the script again once they are done");
+                }
+            } else {
+                set_threads(plan.threads)?;
+                let flag = vmerge::render::StopFlag::default();
+                let handler_flag = flag.clone();
+                ctrlc::set_handler(move || {
+                    // The first signal ends the current cell's iteration and writes it.
+                    if handler_flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
+                        std::process::exit(130);
+                    }
+                })
+                .context("installing the signal handler")?;
+                let mut bar = batch::ProgressBar::default();
+                let ran = batch::run(&plan, args.accel, &flag, &mut |e| bar.show(e))?;
+                bar.finish();
+                eprintln!("{ran} cells rendered");
+            }
+        }
+    }
+    Ok(())
 }

@@ -84,6 +84,12 @@ impl Technique {
     pub fn merges(self) -> bool {
         self.shrinks_radius() || self.is_upg()
     }
+
+    /// Traces a set of light sub-paths per iteration that `light_paths` sizes: the techniques
+    /// of the vertex-merging core (bpt traces one per pixel, its own way).
+    pub fn traces_light_paths(self) -> bool {
+        self == Technique::Lt || self.merges()
+    }
 }
 
 impl fmt::Display for Technique {
@@ -160,6 +166,18 @@ pub struct RenderOptions {
     /// sec. 5.1), so the weights are deterministic.
     #[serde(default = "default_density_map_iterations")]
     pub density_map_iterations: u32,
+    /// Render every triangle flat, ignoring the meshes' vertex normals (applied when the scene
+    /// is loaded).
+    #[serde(default)]
+    pub no_shading_normals: bool,
+    /// Light sub-paths per iteration, n_VM (the thesis's `--num-photons`); `None` = one per
+    /// pixel (001 sec. 2.3).
+    #[serde(default)]
+    pub light_paths: Option<u32>,
+    /// Paths of fewer segments are left out of the image (0 and 1 keep every path; 3 drops
+    /// direct light, as 000 Fig. 4.3 does).
+    #[serde(default)]
+    pub min_path_length: u32,
 }
 
 fn default_density_map_iterations() -> u32 {
@@ -194,6 +212,9 @@ impl RenderOptions {
         upg_max_trials: 10_000,
         density_mis: None,
         density_map_iterations: 50,
+        no_shading_normals: false,
+        light_paths: None,
+        min_path_length: 0,
     };
 
     /// The radius-shrinking exponent a render uses: the given one, 0.75 for the techniques
@@ -316,8 +337,23 @@ pub static RULES: &[OptionRule] = &[
         expected: "",
     },
     OptionRule {
+        name: "min_path_length",
+        takes: every,
+        is_set: |o| o.min_path_length != RenderOptions::DEFAULT.min_path_length,
+        invalid: never_invalid,
+        expected: "",
+    },
+    OptionRule {
+        name: "light_paths",
+        takes: Technique::traces_light_paths,
+        is_set: |o| o.light_paths.is_some(),
+        invalid: |o| (o.light_paths == Some(0)).then(|| "0".to_string()),
+        expected: "at least 1 light sub-path per iteration",
+    },
+    OptionRule {
         name: "no_vc",
-        takes: |t| t == Technique::Vcm,
+        // Merge-only UPG is the "pristine" technique of 000 sec. 5.2.
+        takes: |t| t == Technique::Vcm || t.is_upg(),
         is_set: |o| o.no_vc,
         invalid: never_invalid,
         expected: "",
@@ -359,6 +395,13 @@ pub static RULES: &[OptionRule] = &[
         is_set: |o| o.upg_max_trials != RenderOptions::DEFAULT.upg_max_trials,
         invalid: |o| (o.upg_max_trials == 0).then(|| "0".to_string()),
         expected: "at least 1 trial",
+    },
+    OptionRule {
+        name: "no_shading_normals",
+        takes: every,
+        is_set: |o| o.no_shading_normals,
+        invalid: never_invalid,
+        expected: "",
     },
     OptionRule {
         name: "density_mis",

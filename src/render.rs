@@ -428,6 +428,7 @@ impl NewRender {
             &LoadOptions {
                 accel: self.accel,
                 lenient: self.lenient,
+                shading_normals: !self.options.no_shading_normals,
             },
         )
     }
@@ -494,6 +495,7 @@ pub fn load_for_continue(
         &LoadOptions {
             accel,
             lenient: false,
+            shading_normals: !metadata.options.no_shading_normals,
         },
     )?;
     if scene.source_hash != metadata.scene_hash && !force {

@@ -9,7 +9,8 @@
 //! functions the integrators call. The BPT weights are also checked one by one against the
 //! power heuristic evaluated directly from products of area pdfs (000 eq. (2.47)); the VCM
 //! weights are checked with merges by density estimation and with UPG's merges from either
-//! side, whose clamped acceptance (000 eqs. (2.80)-(2.82)) binds at the larger radii.
+//! side, whose clamped acceptance (000 eqs. (2.80)-(2.82)) binds at the larger radii, and
+//! with merge-only UPG, whose merges share each path among themselves.
 
 mod common;
 
@@ -606,7 +607,7 @@ fn check_scene(name: &str) -> (usize, usize) {
         scene: &scene,
         camera: Camera::new(&desc, PIXELS, PIXELS),
     };
-    let (mut specular, mut merged, mut clamped) = (0, 0, 0);
+    let (mut specular, mut merged, mut clamped, mut shared_merges) = (0, 0, 0, 0);
     let mut reweighted = std::collections::HashMap::<&str, usize>::new();
     for path in &paths {
         let q = evaluate(&setup, path);
@@ -655,6 +656,21 @@ fn check_scene(name: &str) -> (usize, usize) {
                         merged += 1;
                     }
                     if gather != Gather::Density {
+                        // Merge-only UPG (000 sec. 5.2): the merges of a path that has any
+                        // share it among themselves.
+                        let only = VcmWeights::clamped_merges_only(power, radius, setup.n());
+                        let (_, only_vm) = vcm_weights(&only, gather, path, &q);
+                        let sum: f32 = only_vm.iter().sum();
+                        let merges = only_vm.iter().filter(|&&m| m > 0.0).count();
+                        assert!(
+                            merges == 0 || (sum - 1.0).abs() < 1e-4,
+                            "{name}: merge-only {gather:?} weights of a {}-segment path sum \
+                             to {sum} (beta {beta}, r {radius}): {only_vm:?}",
+                            q.k
+                        );
+                        if merges > 1 {
+                            shared_merges += 1;
+                        }
                         // The same techniques without the clamp: where the weights differ,
                         // min(p pi r^2, 1) was 1 somewhere.
                         let free = VcmWeights::new(power, radius, setup.n(), true, true);
@@ -711,6 +727,10 @@ fn check_scene(name: &str) -> (usize, usize) {
             "{name}: {mode:?} never changed a weight"
         );
     }
+    assert!(
+        shared_merges > 0,
+        "{name}: no path had two merge-only UPG techniques"
+    );
     (specular, merged)
 }
 

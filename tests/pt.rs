@@ -13,6 +13,7 @@ fn load(name: &str) -> Scene {
     let options = LoadOptions {
         accel: AccelKind::Bvh,
         lenient: false,
+        shading_normals: true,
     };
     match scene::load(path.as_ref(), &options) {
         Ok(scene) => scene,

@@ -284,6 +284,9 @@ pub struct VcmWeights {
     clamp: Option<(f32, f32)>,
     /// 002's heuristic, when the density map has data.
     density: Option<DensityMis>,
+    /// Connections are techniques: false for merge-only UPG, whose d^VC then sums the merges'
+    /// eta_i alone.
+    connections: bool,
 }
 
 /// The density factor and 1 / k of a merge where 002's heuristic is off (VCM, UPG).
@@ -310,6 +313,7 @@ impl VcmWeights {
             vc_factor: if both { power.mis(1.0 / eta_vcm) } else { 0.0 },
             vm_normalization: 1.0 / eta_vcm,
             clamp: None,
+            connections: true,
             density: None,
         }
     }
@@ -343,6 +347,26 @@ impl VcmWeights {
         VcmWeights {
             clamp: Some((power.mis(area), power.mis(light_paths))),
             ..VcmWeights::new(power, radius, light_paths, true, true)
+        }
+    }
+
+    /// Merge-only UPG (000 sec. 5.2): the clamped merges weighed against each other alone. A
+    /// connection's term (d^VCM in d^VC and in a merge's weight) and the light origin's (the
+    /// eye sub-path hitting the light) drop out; the merges' eta_i stay.
+    pub fn clamped_merges_only(power: Power, radius: f32, light_paths: f32) -> Self {
+        VcmWeights {
+            connections: false,
+            ..VcmWeights::clamped(power, radius, light_paths)
+        }
+    }
+
+    /// d^VCM as a connection's term in d^VC and in a merge's weight: 0 without connections.
+    #[inline]
+    fn connection_term(&self, d_vcm: f32) -> f32 {
+        if self.connections {
+            d_vcm
+        } else {
+            0.0
         }
     }
 
@@ -402,7 +426,7 @@ impl VcmWeights {
         delta: bool,
     ) -> VcmVertex {
         // 001 eq. (32); a delta light cannot be hit, so no technique weighs against it (sec. 5.2).
-        let d_vc = if delta {
+        let d_vc = if delta || !self.connections {
             0.0
         } else {
             self.mis(cos_at_light / emission_pdf_w)
@@ -478,10 +502,11 @@ impl VcmWeights {
         };
         let rev = self.mis(rev_pdf_w);
         if self.density == Some(DensityMis::Star) {
-            v.d_vc = ratio * (v.d_vc * rev + v.d_vcm); // 001 eq. (35), connection terms
+            v.d_vc = ratio * (v.d_vc * rev + self.connection_term(v.d_vcm)); // 001 eq. (35), connection terms
             v.d_vc_vm = ratio * (v.d_vc_vm * rev + eta); // 001 eq. (35), merge terms
         } else {
-            v.d_vc = ratio * (v.d_vc * rev + v.d_vcm + eta); // 001 eq. (35)
+            v.d_vc = ratio * (v.d_vc * rev + self.connection_term(v.d_vcm) + eta);
+            // 001 eq. (35)
         }
         v.d_vm = ratio * (v.d_vm * rev + v.d_vcm * self.vc_factor + here); // 001 eq. (36)
         v.d_vcm = self.mis(1.0 / pdf_w); // 001 eq. (34)
@@ -574,8 +599,8 @@ impl VcmWeights {
             );
             let eta = eta * rho * nu;
             (
-                (light.d_vcm + Self::d_vc(light, nu) * self.mis(pdf_w)) / eta, // 001 eq. (38)
-                (eye.d_vcm + Self::d_vc(eye, nu) * self.mis(rev_pdf_w)) / eta, // 001 eq. (39)
+                (self.connection_term(light.d_vcm) + Self::d_vc(light, nu) * self.mis(pdf_w)) / eta, // 001 eq. (38)
+                (self.connection_term(eye.d_vcm) + Self::d_vc(eye, nu) * self.mis(rev_pdf_w)) / eta, // 001 eq. (39)
             )
         } else {
             (

@@ -6,11 +6,11 @@ use super::mis::{VcmVertex, VcmWeights};
 use super::upg::Deferred;
 use super::IterationStats;
 use crate::accel::Ray;
-use crate::bsdf::{Bsdf, TransportMode};
+use crate::bsdf::{Bsdf, Normals, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::scene::{Scene, SurfaceHit};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 
 /// A stored light sub-path vertex: everything a connection or a merge needs.
 #[derive(Clone, Copy, Debug)]
@@ -18,6 +18,9 @@ pub struct LightVertex {
     pub position: Vec3,
     /// Geometric normal.
     pub ng: Vec3,
+    /// Shading normal and texture coordinates, for the BSDF there.
+    pub ns: Vec3,
+    pub uv: Vec2,
     /// Unit direction back towards the previous vertex of the light sub-path.
     pub wo: Vec3,
     pub throughput: Rgb,
@@ -37,8 +40,17 @@ pub struct LightVertex {
 impl LightVertex {
     /// The vertex's BSDF, as the light sub-path scattered there.
     pub fn bsdf<'s>(&self, scene: &'s Scene) -> Option<Bsdf<'s>> {
-        let material = &scene.material(self.material).kind;
-        Bsdf::new(material, self.ng, self.wo, TransportMode::Importance)
+        let normals = Normals {
+            ng: self.ng,
+            ns: self.ns,
+        };
+        scene.bsdf(
+            self.material,
+            normals,
+            self.uv,
+            self.wo,
+            TransportMode::Importance,
+        )
     }
 
     /// The MIS quantities once a use of the vertex fixes `rev_pdf_w`, the pdf with which it
@@ -132,8 +144,15 @@ impl LightPaths {
         }
     }
 
-    /// The light sub-path traced for `pixel`.
-    pub fn of_pixel(&self, pixel: usize) -> &[LightVertex] {
-        &self.vertices[self.path_ends[pixel]..self.path_ends[pixel + 1]]
+    /// The light sub-path the eye sub-path of `pixel` connects to: the one traced for it when
+    /// there is one per pixel, the paths taken in turn when there are fewer, and each pixel's own
+    /// when there are more (the rest are merged and splatted only). Every eye sub-path connects
+    /// to one light sub-path either way (n_VC = 1).
+    pub fn for_pixel(&self, pixel: usize) -> &[LightVertex] {
+        let path = pixel % (self.path_ends.len() - 1).max(1);
+        match self.path_ends.get(path..path + 2) {
+            Some(&[start, end]) => &self.vertices[start..end],
+            _ => &[],
+        }
     }
 }

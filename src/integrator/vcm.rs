@@ -7,7 +7,8 @@
 //!
 //! The structure follows SmallVCM's VertexCM, read top to bottom:
 //! 1. the light pass ([`VertexCm::trace_light_path`]): one light sub-path per pixel (n_light =
-//!    n_VM = pixel count, 001 sec. 2.3) from [`VertexCm::light_sample`]; its non-specular
+//!    n_VM = pixel count, 001 sec. 2.3; `light_paths` sets another count) from
+//!    [`VertexCm::light_sample`]; its non-specular
 //!    vertices are stored with the MIS quantities d^VCM, d^VC, d^VM and connected to the camera;
 //! 2. the hash grid over the stored vertices;
 //! 3. the eye pass ([`VertexCm::trace_eye_path`]): one eye sub-path per pixel that at every
@@ -62,7 +63,7 @@ impl Modes {
             Technique::Lt => (false, false, false, true),
             Technique::Ppm => (false, true, true, false),
             Technique::Bpm => (false, true, false, false),
-            Technique::Upg | Technique::UpgCamera => (true, true, false, false),
+            Technique::Upg | Technique::UpgCamera => (!o.no_vc, true, false, false),
             _ => (!o.no_vc, !o.no_vm, false, false),
         };
         let gather = match o.technique {
@@ -132,7 +133,7 @@ impl<'a> VertexCm<'a> {
                 ctx.scene,
                 modes.gather,
                 estimator,
-                ctx.max_path_length(),
+                [o.min_path_length, ctx.max_path_length()],
                 o.roulette,
             )
         });
@@ -156,12 +157,13 @@ impl<'a> VertexCm<'a> {
     fn weights(&self, iteration: u64) -> VcmWeights {
         let i = (iteration + 1) as f32;
         let radius = (self.base_radius * i.powf(0.5 * (self.alpha - 1.0))).max(1e-7);
-        let (power, paths) = (
-            Power(self.ctx.options.beta),
-            self.ctx.camera.pixel_count() as f32,
-        );
+        let (power, paths) = (Power(self.ctx.options.beta), self.light_paths() as f32);
         if self.modes.gather != Gather::Density {
-            return VcmWeights::clamped(power, radius, paths);
+            return if self.modes.vc {
+                VcmWeights::clamped(power, radius, paths)
+            } else {
+                VcmWeights::clamped_merges_only(power, radius, paths)
+            };
         }
         let w = VcmWeights::new(power, radius, paths, self.modes.vc, self.modes.vm);
         match (self.ctx.options.density_mis, &self.density) {
@@ -188,6 +190,19 @@ impl<'a> VertexCm<'a> {
 
     fn scene(&self) -> &'a Scene {
         self.ctx.scene
+    }
+
+    /// Light sub-paths per iteration: n_VM, and the light tracer's n_light (001 sec. 2.3).
+    fn light_paths(&self) -> usize {
+        match self.ctx.options.light_paths {
+            Some(n) => n as usize,
+            None => self.ctx.camera.pixel_count(),
+        }
+    }
+
+    /// Whether a full path of `segments` is short of `--min-path-length` and left out.
+    fn too_short(&self, segments: u32) -> bool {
+        segments < self.ctx.options.min_path_length
     }
 
     /// Starts a light sub-path (SmallVCM's GenerateLightSample; 001 eqs. 31-33).
@@ -309,8 +324,7 @@ impl<'a> VertexCm<'a> {
             };
             let dir = state.ray.dir.normalize();
             self.arrive(w, &mut state, &hit, true);
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Importance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Importance) else {
                 break;
             };
             state.deferred.keep_if(!bsdf.is_delta());
@@ -321,6 +335,8 @@ impl<'a> VertexCm<'a> {
                     chunk.vertices.push(LightVertex {
                         position: hit.position,
                         ng: hit.ng,
+                        ns: hit.ns,
+                        uv: hit.uv,
                         wo: -dir,
                         throughput: state.throughput,
                         material: hit.material,
@@ -395,6 +411,9 @@ impl<'a> VertexCm<'a> {
         chunk: &mut LightChunk,
     ) {
         let camera = &self.ctx.camera;
+        if self.too_short(state.path_length + 1) {
+            return;
+        }
         let Some((x, y)) = camera.raster(hit.position) else {
             return;
         };
@@ -438,6 +457,9 @@ impl<'a> VertexCm<'a> {
     /// `None` (s = 0; 001 eqs. 42-43). No merge is gathered from a light point, so a deferred
     /// one is not counted.
     fn emission(&self, w: &VcmWeights, state: &SubPath, hit: Option<&SurfaceHit>) -> Rgb {
+        if self.too_short(state.path_length) {
+            return Rgb::BLACK;
+        }
         let lights = &self.scene().lights;
         let dir = state.ray.dir.normalize();
         let Some((received, index)) = lights.received(dir, hit.map(|h| (h.light, h.ng))) else {
@@ -474,6 +496,9 @@ impl<'a> VertexCm<'a> {
         rng: &mut Rng,
         stats: &mut IterationStats,
     ) -> Rgb {
+        if self.too_short(state.path_length + 1) {
+            return Rgb::BLACK;
+        }
         let Some(ls) = LightSample::draw(self.scene(), hit, bsdf, rng) else {
             return Rgb::BLACK;
         };
@@ -504,6 +529,9 @@ impl<'a> VertexCm<'a> {
         lv: &LightVertex,
         stats: &mut IterationStats,
     ) -> Rgb {
+        if self.too_short(lv.path_length + state.path_length + 1) {
+            return Rgb::BLACK;
+        }
         let Some(light_bsdf) = lv.bsdf(self.scene()) else {
             return Rgb::BLACK;
         };
@@ -571,7 +599,8 @@ impl<'a> VertexCm<'a> {
         let mut sum = Rgb::BLACK;
         grid.query(hit.position, |i, _| {
             let lv = &vertices[i];
-            if lv.path_length.saturating_add(state.path_length) > max_length {
+            let segments = lv.path_length.saturating_add(state.path_length);
+            if segments > max_length || self.too_short(segments) {
                 return;
             }
             let eval = bsdf.eval(lv.wo);
@@ -600,7 +629,7 @@ impl<'a> VertexCm<'a> {
         let w = &pass.w;
         let camera = &self.ctx.camera;
         let seed = self.ctx.options.seed;
-        let light_path = pass.light.of_pixel(pixel);
+        let light_path = pass.light.for_pixel(pixel);
         let gathered = pass.grid.map(|grid| Gathered {
             vertices: &pass.light.vertices,
             grid,
@@ -646,8 +675,7 @@ impl<'a> VertexCm<'a> {
             if self.modes.light_trace || state.path_length >= max_length {
                 break;
             }
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Radiance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Radiance) else {
                 break;
             };
             state.deferred.keep_if(!bsdf.is_delta());
@@ -713,7 +741,8 @@ impl Integrator for VertexCm<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
         self.rebuild_density_map(iteration, frame.len());
         let w = self.weights(iteration);
-        let chunks = self.light_pass(&w, iteration, frame.len());
+        let paths = self.light_paths();
+        let chunks = self.light_pass(&w, iteration, paths);
         let mut stats = IterationStats::default();
         let light = LightPaths::concatenate(chunks, frame, &mut stats);
         self.stored_vertices = light.vertices.len();
@@ -753,7 +782,7 @@ impl Integrator for VertexCm<'_> {
     }
 
     fn statistics(&self) -> Vec<(String, String)> {
-        let paths = self.ctx.camera.pixel_count().max(1);
+        let paths = self.light_paths().max(1);
         let mut stats = vec![
             (
                 "light_vertices_per_path".into(),

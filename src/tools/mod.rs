@@ -4,13 +4,15 @@
 //! - merge: [`merge`] renders of one scene made with different seeds;
 //! - convert: [`bake`] to a plain EXR, [`strip`] the error series;
 //! - inspect: [`time`], [`metadata`], [`measurements`], [`traces`];
-//! - plot: convergence charts, [`plot`].
+//! - plot: convergence charts, [`plot`];
+//! - batch: plans of renders, their command lines for GNU parallel or Slurm, their report.
 //!
 //! Every function reads its inputs, writes its output atomically and returns a [`FilmError`]
 //! naming the offending file.
 //!
 //! [`FilmError`]: crate::film::FilmError
 
+pub mod batch;
 mod compare;
 mod convert;
 mod inspect;
@@ -21,4 +23,4 @@ pub use compare::{average, diff, errors, relative_mse};
 pub use convert::{bake, strip};
 pub use inspect::{measurements, metadata, time, traces};
 pub use merge::{merge, MERGED_SEEDS};
-pub use plot::plot;
+pub use plot::{draw_charts, plot, Chart, ChartSeries, Metric};

@@ -14,6 +14,7 @@ pub fn load(name: &str) -> Scene {
     let options = LoadOptions {
         accel: AccelKind::default_kind(),
         lenient: false,
+        shading_normals: true,
     };
     scene::load(path.as_ref(), &options).unwrap_or_else(|e| panic!("{e}"))
 }

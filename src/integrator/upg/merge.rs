@@ -31,7 +31,8 @@ pub struct UpgMerges<'s> {
     scene: &'s Scene,
     gather: Gather,
     estimator: Estimator,
-    /// Path-length bound in segments.
+    /// Path-length bounds in segments: the shortest path kept, the longest traced.
+    min_length: u32,
     max_length: u32,
     /// Path length from which Russian roulette may end paths.
     roulette: u32,
@@ -43,13 +44,14 @@ impl<'s> UpgMerges<'s> {
         scene: &'s Scene,
         gather: Gather,
         estimator: Estimator,
-        max_length: u32,
+        [min_length, max_length]: [u32; 2],
         roulette: u32,
     ) -> Self {
         UpgMerges {
             scene,
             gather,
             estimator,
+            min_length,
             max_length,
             roulette,
         }
@@ -74,7 +76,7 @@ impl<'s> UpgMerges<'s> {
                 return;
             }
             let q = &vertices[i - 1];
-            if q.path_length + 1 + state.path_length > self.max_length {
+            if !self.keeps(q.path_length + 1 + state.path_length) {
                 return;
             }
             let Some(q_bsdf) = q.bsdf(self.scene) else {
@@ -126,7 +128,7 @@ impl<'s> UpgMerges<'s> {
         let vertices = gathered.vertices;
         gathered.grid.query(position, |i, _| {
             let photon = &vertices[i];
-            if photon.path_length + 1 + prev.path_length > self.max_length {
+            if !self.keeps(photon.path_length + 1 + prev.path_length) {
                 return;
             }
             let Some(p_bsdf) = photon.bsdf(self.scene) else {
@@ -172,6 +174,11 @@ impl<'s> UpgMerges<'s> {
     }
 
     /// The probability that Russian roulette let a sub-path go on from a vertex.
+    /// Whether a merged path of `segments` lies within the path-length bounds.
+    fn keeps(&self, segments: u32) -> bool {
+        (self.min_length..=self.max_length).contains(&segments)
+    }
+
     fn roulette_probability(&self, bsdf: &Bsdf, path_length: u32) -> f32 {
         if path_length >= self.roulette {
             bsdf.continuation_probability()

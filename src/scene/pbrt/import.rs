@@ -9,10 +9,14 @@ use crate::accel::{Geometry, Sphere};
 use crate::bsdf::{Material, MaterialKind};
 use crate::color::Rgb;
 use crate::files::{self, FileError, Kind};
-use crate::light::{Light, SkyDesc};
+use crate::light::{EnvMapDesc, Light, SkyDesc};
 use crate::options::OptionName;
-use crate::scene::{CameraDesc, FovAxis, RenderDefaults, SceneError, SceneParts, MAX_COORDINATE};
-use glam::{DMat3, DMat4, DVec3, Vec3};
+use crate::scene::{
+    CameraDesc, FovAxis, MaterialTextures, MeshShading, RenderDefaults, SceneError, SceneParts,
+    MAX_COORDINATE,
+};
+use crate::texture::{self, Texture};
+use glam::{DMat3, DMat4, DVec3, Mat3, Vec2, Vec3};
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
 use std::collections::{BTreeSet, HashMap};
@@ -30,10 +34,11 @@ struct Loc {
 #[derive(Clone, Debug)]
 enum Tex {
     Constant(Rgb),
-    /// An image file that exists, times `scale`.
+    /// An image file that exists, times `scale`, and its Texture directive.
     Image {
         path: PathBuf,
         scale: Rgb,
+        loc: Loc,
     },
     /// An image file that is missing (with `--lenient`): the material's constant stands in.
     Missing,
@@ -89,17 +94,6 @@ enum Block {
     Object,
 }
 
-/// The texture and normal data of the triangles, in the layout the renderer's scene keeps.
-#[derive(Debug, Default)]
-struct Shading {
-    normals: Vec<Vec3>,
-    uvs: Vec<[f32; 2]>,
-    triangle_normals: Vec<[u32; 3]>,
-    triangle_uvs: Vec<[u32; 3]>,
-}
-
-const NO_DATA: [u32; 3] = [u32::MAX; 3];
-
 pub struct Importer {
     lenient: bool,
     warnings: Vec<String>,
@@ -128,7 +122,9 @@ pub struct Importer {
     ignored_directives: BTreeSet<String>,
 
     materials: Vec<Material>,
-    material_textures: Vec<Option<PathBuf>>,
+    /// Per material: the image its reflectance comes from, the factor on its texels, and the
+    /// Texture directive.
+    material_textures: Vec<Option<(PathBuf, Rgb, Loc)>>,
     default_material: Option<u32>,
     emissive: HashMap<(u32, [u32; 3]), u32>,
     camera: Option<CameraDesc>,
@@ -136,7 +132,7 @@ pub struct Importer {
     max_path_length: Option<u32>,
     lights: Vec<Light>,
     sky: Option<SkyDesc>,
-    env_image: Option<(PathBuf, f32, DMat4)>,
+    env_image: Option<(PathBuf, f32, DMat4, Loc)>,
 }
 
 /// What the import produced besides the parts: warnings, one line each.
@@ -721,6 +717,7 @@ impl Importer {
                     Tex::Image {
                         path,
                         scale: Rgb::splat(scale),
+                        loc,
                     }
                 } else if self.lenient {
                     self.warn(
@@ -766,9 +763,14 @@ impl Importer {
                 };
                 match base {
                     Tex::Constant(c) => Tex::Constant(c * scale),
-                    Tex::Image { path, scale: s } => Tex::Image {
+                    Tex::Image {
+                        path,
+                        scale: s,
+                        loc,
+                    } => Tex::Image {
                         path,
                         scale: s * scale,
+                        loc,
                     },
                     Tex::Missing => Tex::Missing,
                 }
@@ -897,13 +899,15 @@ impl Importer {
             |im: &mut Importer, param: &str, default: Rgb| -> Result<Rgb, SceneError> {
                 Ok(match im.spectrum_texture(loc, p, param, default)? {
                     Tex::Constant(c) => c,
-                    Tex::Image { path, scale } => {
-                        texture = Some((path, scale));
+                    Tex::Image { path, scale, loc } => {
+                        texture = Some((path, scale, loc));
                         default
                     }
                     Tex::Missing => default,
                 })
             };
+        // What the mapping multiplies the reflectance by, applied to a texture's texels too.
+        let mut factor = Rgb::WHITE;
         let kind = match ty {
             "diffuse" => MaterialKind::Lambert {
                 kd: albedo(self, "reflectance", Rgb::splat(0.5))?,
@@ -919,6 +923,7 @@ impl Importer {
                 notes.push(format!(
                     "coateddiffuse as Phong: kd = reflectance x (1 - F0), ks = F0 = {f0:.3}, exponent {exponent:.0} from alpha {alpha}"
                 ));
+                factor = Rgb::splat(1.0 - f0);
                 MaterialKind::Phong {
                     kd: reflectance * (1.0 - f0),
                     ks: Rgb::splat(f0),
@@ -992,6 +997,7 @@ impl Importer {
                 notes.push(
                     "diffusetransmission as lambert of its reflectance (no transmission)".into(),
                 );
+                factor = Rgb::splat(scale);
                 MaterialKind::Lambert {
                     kd: reflectance * scale,
                 }
@@ -1025,7 +1031,8 @@ impl Importer {
             kind,
             emission: Rgb::BLACK,
         });
-        self.material_textures.push(texture.map(|(path, _)| path));
+        self.material_textures
+            .push(texture.map(|(path, scale, loc)| (path, scale * factor, loc)));
         Ok(index)
     }
 
@@ -1196,7 +1203,7 @@ impl Importer {
                     Some(file) => {
                         let path = self.resolve(&file);
                         if path.exists() {
-                            self.env_image = Some((path, scale, ctm));
+                            self.env_image = Some((path, scale, ctm, loc));
                         } else if self.lenient {
                             self.warn(
                                 loc,
@@ -1351,7 +1358,7 @@ impl Importer {
         let mut geometry = Geometry::default();
         let mut triangle_materials = Vec::new();
         let mut sphere_materials = Vec::new();
-        let mut shading = Shading::default();
+        let mut shading = MeshShading::default();
         let mut dropped = 0usize;
         let shapes = std::mem::take(&mut self.shapes);
         for s in &shapes {
@@ -1423,7 +1430,8 @@ impl Importer {
                 file: self.files[0].clone(),
             });
         }
-        self.attach_surfaces(&shading);
+        let (material_textures, textures) = self.load_textures()?;
+        let env_map = self.env_map()?;
         let camera = self.camera.clone().unwrap_or_else(|| CameraDesc {
             name: "camera".into(),
             position: Vec3::ZERO,
@@ -1452,8 +1460,12 @@ impl Importer {
                 triangle_materials,
                 sphere_materials,
                 materials: self.materials,
+                material_textures,
+                textures,
+                shading,
                 point_and_directional: self.lights,
                 sky: self.sky,
+                env_map,
                 cameras: vec![camera],
                 defaults,
                 dropped_triangles: dropped,
@@ -1463,30 +1475,128 @@ impl Importer {
         })
     }
 
-    /// Shading normals, uvs, image textures and the environment image: until the renderer's
-    /// scene carries them, each is reported once and the constants stand in.
-    fn attach_surfaces(&mut self, shading: &Shading) {
-        let main = self.files[0].display().to_string();
-        if !shading.normals.is_empty() || !shading.uvs.is_empty() {
-            self.warnings.push(format!(
-                "{main}: {} vertex normals and {} uvs read but not used (flat shading)",
-                shading.normals.len(),
-                shading.uvs.len()
+    /// Decodes the materials' images (in parallel, each file once) and gives each material its
+    /// texture: the image times the material's factor (a scaled copy where that is not 1).
+    #[allow(clippy::type_complexity)]
+    fn load_textures(&mut self) -> Result<(Vec<MaterialTextures>, Vec<Arc<Texture>>), SceneError> {
+        let mut paths: Vec<PathBuf> = self
+            .material_textures
+            .iter()
+            .flatten()
+            .map(|(p, _, _)| p.clone())
+            .collect();
+        paths.sort();
+        paths.dedup();
+        let decoded: Vec<Result<(Texture, Vec<u8>), String>> = paths
+            .par_iter()
+            .map(|p| {
+                let bytes = std::fs::read(p).map_err(|e| e.to_string())?;
+                Ok((texture::read(p)?, bytes))
+            })
+            .collect();
+        let mut images: HashMap<PathBuf, Arc<Texture>> = HashMap::new();
+        for (path, result) in paths.iter().zip(decoded) {
+            match result {
+                Ok((image, bytes)) => {
+                    self.hasher.update(&bytes);
+                    self.inputs.push(path.clone());
+                    images.insert(path.clone(), Arc::new(image));
+                }
+                Err(message) => {
+                    let loc = self
+                        .material_textures
+                        .iter()
+                        .flatten()
+                        .find(|(p, _, _)| p == path)
+                        .map_or(Loc { file: 0, line: 1 }, |&(_, _, loc)| loc);
+                    let message = format!("cannot read image {}: {message}", path.display());
+                    if !self.lenient {
+                        return Err(self.at(loc, message));
+                    }
+                    self.warn(loc, format!("{message}; its materials use their constant"));
+                }
+            }
+        }
+        let mut textures: Vec<Arc<Texture>> = Vec::new();
+        let mut index: HashMap<(PathBuf, [u32; 3]), u32> = HashMap::new();
+        let mut out = Vec::with_capacity(self.material_textures.len());
+        for entry in &self.material_textures {
+            let Some((image, path, factor)) = entry
+                .as_ref()
+                .and_then(|(p, f, _)| images.get(p).map(|i| (i, p, *f)))
+            else {
+                out.push(MaterialTextures::default());
+                continue;
+            };
+            let key = (path.clone(), factor.to_array().map(f32::to_bits));
+            let i = *index.entry(key).or_insert_with(|| {
+                let texture = if factor == Rgb::WHITE {
+                    Arc::clone(image)
+                } else {
+                    let texels = image.texels.iter().map(|&t| t * factor).collect();
+                    Arc::new(Texture {
+                        texels,
+                        ..(**image).clone()
+                    })
+                };
+                textures.push(texture);
+                textures.len() as u32 - 1
+            });
+            out.push(MaterialTextures {
+                kd: Some(i),
+                ks: None,
+            });
+        }
+        Ok((out, textures))
+    }
+
+    /// The infinite light's image: pbrt-v4's equal-area octahedral square, resampled to the
+    /// equirectangular image vmerge's environment light takes, in world space.
+    fn env_map(&mut self) -> Result<Option<EnvMapDesc>, SceneError> {
+        let Some((path, scale, ctm, loc)) = self.env_image.take() else {
+            return Ok(None);
+        };
+        let read = std::fs::read(&path)
+            .map_err(|e| e.to_string())
+            .and_then(|bytes| Ok((texture::read(&path)?, bytes)));
+        let (image, bytes) = match read {
+            Ok(x) => x,
+            Err(message) => {
+                let message = format!(
+                    "LightSource infinite: cannot read {}: {message}",
+                    path.display()
+                );
+                if !self.lenient {
+                    return Err(self.at(loc, message));
+                }
+                self.warn(
+                    loc,
+                    format!("{message}; a constant sky of radiance {scale} instead"),
+                );
+                self.sky = Some(constant_sky(Rgb::splat(scale)));
+                return Ok(None);
+            }
+        };
+        if image.width != image.height {
+            return Err(self.at(
+                loc,
+                format!(
+                    "LightSource infinite: {} is {}x{}, not square (pbrt-v4's environment images are equal-area octahedral squares)",
+                    path.display(),
+                    image.width,
+                    image.height
+                ),
             ));
         }
-        let textured = self.material_textures.iter().flatten().count();
-        if textured > 0 {
-            self.warnings.push(format!(
-                "{main}: {textured} materials with image textures use their constants"
-            ));
-        }
-        if let Some((path, scale, _)) = self.env_image.take() {
-            self.warnings.push(format!(
-                "{main}: environment image {} not used; a constant sky of radiance {scale}",
-                path.display()
-            ));
-            self.sky = Some(constant_sky(Rgb::splat(scale)));
-        }
+        self.hasher.update(&bytes);
+        self.inputs.push(path.clone());
+        let light_from_world = DMat3::from_mat4(ctm).inverse();
+        let resampled = super::envmap::equirect_from_octahedral(&image, light_from_world);
+        Ok(Some(EnvMapDesc {
+            image: Arc::new(resampled),
+            scale,
+            rotation: Mat3::IDENTITY,
+        }))
     }
 }
 
@@ -1620,7 +1730,7 @@ fn place_mesh(
     s: &ShapeRecord,
     geometry: &mut Geometry,
     triangle_materials: &mut Vec<u32>,
-    shading: &mut Shading,
+    shading: &mut MeshShading,
 ) -> usize {
     let base = geometry.positions.len() as u32;
     let identity = s.ctm == DMat4::IDENTITY;
@@ -1643,7 +1753,9 @@ fn place_mesh(
         }
     }));
     let uv_base = shading.uvs.len() as u32;
-    shading.uvs.extend_from_slice(&mesh.uvs);
+    shading
+        .uvs
+        .extend(mesh.uvs.iter().map(|&uv| Vec2::from_array(uv)));
     let flip = s.reverse_orientation ^ (DMat3::from_mat4(s.ctm).determinant() < 0.0);
     let mut dropped = 0;
     for &[a, b, c] in &mesh.triangles {
@@ -1673,12 +1785,12 @@ fn place_mesh(
         geometry.triangles.push(t.map(|i| base + i));
         triangle_materials.push(s.material);
         shading.triangle_normals.push(if mesh.normals.is_empty() {
-            NO_DATA
+            MeshShading::NONE
         } else {
             t.map(|i| normal_base + i)
         });
         shading.triangle_uvs.push(if mesh.uvs.is_empty() {
-            NO_DATA
+            MeshShading::NONE
         } else {
             t.map(|i| uv_base + i)
         });

@@ -9,6 +9,7 @@
 use super::{LoadOptions, SceneError, SceneParts};
 use std::path::Path;
 
+mod envmap;
 mod import;
 mod material;
 mod parser;
