@@ -1992,8 +1992,14 @@ mod tests {
         let g = &im.parts.geometry;
         assert_eq!(g.positions.len(), 4);
         assert_eq!(g.positions[2], Vec3::new(1.0, 1.0, 2.0));
-        // The quad is split in two, both turned to face the normals (-z).
+        // The quad is split in two, both turned to face the normals (-z), which with the uvs
+        // become the triangles' shading data.
         assert_eq!(g.triangles.len(), 2);
+        let sh = &im.parts.shading;
+        assert_eq!((sh.normals.len(), sh.uvs.len()), (4, 4));
+        assert_eq!(sh.normals[0], Vec3::new(0.0, 0.0, -1.0));
+        assert_eq!(sh.triangle_normals, g.triangles);
+        assert_eq!(sh.triangle_uvs, g.triangles);
         for t in &g.triangles {
             let [a, b, c] = t.map(|i| g.positions[i as usize]);
             assert!((b - a).cross(c - a).z < 0.0);
@@ -2013,6 +2019,29 @@ mod tests {
         assert!(
             e.contains("scene.pbrt:3:") && e.contains("ends after 0 of 1 faces"),
             "{e}"
+        );
+    }
+
+    #[test]
+    fn image_textures_carry_the_mappings_factor() {
+        let image = Texture::new(2, 1, vec![Rgb::splat(0.5), Rgb::WHITE]).unwrap();
+        let pfm = texture::write_pfm(&image);
+        let src = format!(
+            "WorldBegin\nTexture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"t.pfm\"\n\
+             Texture \"half\" \"spectrum\" \"scale\" \"texture tex\" \"t\" \"float scale\" 0.5\n\
+             Material \"diffuse\" \"texture reflectance\" \"t\"\nShape \"trianglemesh\" {QUAD}\n\
+             Material \"coateddiffuse\" \"texture reflectance\" \"half\"\nShape \"trianglemesh\" {QUAD}\n"
+        );
+        let (_dir, result) = import_files(&[("scene.pbrt", src.as_bytes()), ("t.pfm", &pfm)]);
+        let p = result.unwrap_or_else(|e| panic!("{e}")).parts;
+        assert_eq!(p.textures.len(), 2);
+        let kd = |m: usize| p.material_textures[m].kd.unwrap() as usize;
+        assert_eq!(p.textures[kd(0)].texels, image.texels);
+        // The scale texture's 0.5, times coateddiffuse's 1 - F0 = 0.96.
+        let t = &p.textures[kd(1)].texels;
+        assert!(
+            (t[1].r - 0.48).abs() < 1e-6 && (t[0].g - 0.24).abs() < 1e-6,
+            "{t:?}"
         );
     }
 
