@@ -23,6 +23,9 @@ pub enum Kind {
     Obj,
     Mtl,
     Exr,
+    /// A pbrt-v4 scene file (inline meshes can make it large).
+    Pbrt,
+    Ply,
 }
 
 impl Kind {
@@ -33,7 +36,7 @@ impl Kind {
         match self {
             Kind::Scene => 16 * MIB,
             Kind::Mtl => 64 * MIB,
-            Kind::Obj => 4096 * MIB,
+            Kind::Obj | Kind::Pbrt | Kind::Ply => 4096 * MIB,
             Kind::Exr => 8192 * MIB,
         }
     }
@@ -43,6 +46,8 @@ impl Kind {
         match self {
             Kind::Scene => "a scene file",
             Kind::Obj => "an OBJ file",
+            Kind::Pbrt => "a pbrt scene file",
+            Kind::Ply => "a PLY file",
             Kind::Mtl => "an MTL file",
             Kind::Exr => "an EXR file",
         }

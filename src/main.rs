@@ -77,7 +77,7 @@ enum Command {
 
 #[derive(Args)]
 struct RenderArgs {
-    /// The scene file (TOML).
+    /// The scene file: TOML, or pbrt-v4 (`.pbrt`).
     scene: PathBuf,
     #[arg(long, short = 't', value_parser = technique_parser(), default_value = DEFAULT.technique.name())]
     technique: Technique,
@@ -405,7 +405,16 @@ fn render(args: RenderArgs) -> Result<()> {
     }
     // Checked again by the library; here before the scene loads, so a mistake costs nothing.
     setup.check()?;
+    let loading = std::time::Instant::now();
     let scene = setup.load_scene()?;
+    eprintln!(
+        "loaded {} in {:.2} s ({} triangles, {} spheres, {} lights)",
+        scene.source.display(),
+        loading.elapsed().as_secs_f64(),
+        scene.geometry.triangles.len(),
+        scene.geometry.spheres.len(),
+        scene.lights.len()
+    );
     let job = setup.job(&scene)?;
     run_job(job, stop)
 }

@@ -16,7 +16,9 @@ use vmerge::color::Rgb;
 use vmerge::options::RenderOptions;
 use vmerge::options::Technique;
 use vmerge::sampling::Rng;
-use vmerge::scene::{self, Camera, CameraDesc, LoadOptions, RenderDefaults, Scene, SceneParts};
+use vmerge::scene::{
+    self, Camera, CameraDesc, FovAxis, LoadOptions, RenderDefaults, Scene, SceneParts,
+};
 
 const IOR: f64 = 1.5;
 const MAX_PATH_LENGTH: u32 = 10;
@@ -129,6 +131,8 @@ fn pane_scene(accel: AccelKind) -> Scene {
             look_at: -Vec3::Z,
             up: Vec3::Y,
             fov_deg: 60.0,
+            fov_axis: FovAxis::Vertical,
+            mirrored: false,
         }],
         defaults: RenderDefaults {
             resolution: [32, 32],
@@ -136,6 +140,7 @@ fn pane_scene(accel: AccelKind) -> Scene {
             radius: None,
         },
         dropped_triangles: 0,
+        inputs: Vec::new(),
     };
     Scene::build(parts, accel).unwrap_or_else(|e| panic!("{e}"))
 }

@@ -10,6 +10,13 @@ pub enum SceneError {
     File(#[from] FileError),
     #[error("{file}: {message}")]
     Parse { file: PathBuf, message: String },
+    /// A problem at a line of a pbrt scene file.
+    #[error("{file}:{line}: {message}")]
+    At {
+        file: PathBuf,
+        line: u32,
+        message: String,
+    },
     #[error("{file}: {entry}: {message}")]
     Invalid {
         file: PathBuf,

@@ -7,8 +7,8 @@
 
 use super::wavefront;
 use super::{
-    CameraDesc, MaterialTextures, MeshShading, RenderDefaults, Scene, SceneError, SceneParts,
-    MAX_COORDINATE,
+    CameraDesc, FovAxis, MaterialTextures, MeshShading, RenderDefaults, Scene, SceneError,
+    SceneParts, MAX_COORDINATE,
 };
 use crate::accel::{AccelKind, Geometry, Sphere};
 use crate::bsdf::{Material, MaterialKind};
@@ -164,8 +164,12 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
     Scene::build(parts, options.accel)
 }
 
-/// Reads and validates the scene file and its meshes, without building the ray queries.
+/// Reads and validates the scene file and its meshes, without building the ray queries: a
+/// pbrt-v4 file by its extension (`.pbrt`), TOML otherwise.
 pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, SceneError> {
+    if super::pbrt::is_pbrt(path) {
+        return super::pbrt::load_parts(path, options);
+    }
     let text = files::read_text(path, Kind::Scene)?;
     let parse_error = |e: toml::de::Error| SceneError::Parse {
         file: path.to_path_buf(),
@@ -572,6 +576,8 @@ impl Loader {
             look_at,
             up,
             fov_deg: c.fov,
+            fov_axis: FovAxis::Vertical,
+            mirrored: false,
         })
     }
 

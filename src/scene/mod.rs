@@ -13,9 +13,10 @@ use std::sync::Arc;
 mod camera;
 mod error;
 mod load;
+pub mod pbrt;
 mod wavefront;
 
-pub use camera::{Camera, CameraDesc};
+pub use camera::{Camera, CameraDesc, FovAxis};
 pub use error::SceneError;
 pub use load::{load, load_parts, LoadOptions};
 
