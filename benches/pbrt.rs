@@ -102,6 +102,7 @@ fn main() {
         let options = LoadOptions {
             accel: AccelKind::default_kind(),
             lenient: true,
+            shading_normals: true,
         };
         let (mut parts_s, mut total_s) = (f64::MAX, f64::MAX);
         for _ in 0..ROUNDS {

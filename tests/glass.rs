@@ -140,7 +140,6 @@ fn pane_scene(accel: AccelKind) -> Scene {
             radius: None,
         },
         dropped_triangles: 0,
-        inputs: Vec::new(),
     };
     Scene::build(parts, accel).unwrap_or_else(|e| panic!("{e}"))
 }

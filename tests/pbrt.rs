@@ -15,6 +15,7 @@ fn load(path: &Path, lenient: bool) -> Result<Scene, scene::SceneError> {
     let options = LoadOptions {
         accel: AccelKind::default_kind(),
         lenient,
+        shading_normals: true,
     };
     scene::load(path, &options)
 }
