@@ -85,7 +85,7 @@ struct RenderArgs {
     #[arg(long, short = 'n')]
     iterations: Option<u64>,
     /// Stop after this time (e.g. 90s, 10m, 2h).
-    #[arg(long, value_parser = parse_duration)]
+    #[arg(long, value_parser = vmerge::options::parse_duration)]
     time: Option<Duration>,
     /// Output EXR; a PNG preview is written next to it.
     #[arg(long, short = 'o', default_value = "render.exr")]
@@ -110,7 +110,7 @@ struct RenderArgs {
     #[arg(long = "trace", value_parser = parse_trace)]
     traces: Vec<vmerge::film::TraceWindow>,
     /// Write the image every interval (e.g. 10m).
-    #[arg(long, value_parser = parse_duration)]
+    #[arg(long, value_parser = vmerge::options::parse_duration)]
     snapshot: Option<Duration>,
     /// Do not write the PNG preview.
     #[arg(long)]
@@ -185,7 +185,7 @@ struct ContinueArgs {
     #[arg(long, short = 'n')]
     iterations: Option<u64>,
     /// Render for this much more time.
-    #[arg(long, value_parser = parse_duration)]
+    #[arg(long, value_parser = vmerge::options::parse_duration)]
     time: Option<Duration>,
     /// Where to write (default: over the input).
     #[arg(long, short = 'o')]
@@ -197,7 +197,7 @@ struct ContinueArgs {
     threads: Option<usize>,
     #[arg(long, value_parser = accel_parser(), default_value = AccelKind::default_kind().name())]
     accel: AccelKind,
-    #[arg(long, value_parser = parse_duration)]
+    #[arg(long, value_parser = vmerge::options::parse_duration)]
     snapshot: Option<Duration>,
     #[arg(long)]
     no_png: bool,
@@ -233,26 +233,6 @@ fn accel_parser() -> impl TypedValueParser<Value = AccelKind> {
             .find(|k| k.name() == name)
             .ok_or("no such backend")
     })
-}
-
-fn parse_duration(s: &str) -> Result<Duration, String> {
-    let s = s.trim();
-    let split = s.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(s.len());
-    let (number, unit) = s.split_at(split);
-    let value: f64 = number
-        .parse()
-        .map_err(|_| format!("'{s}' is not a duration like 90s, 10m, 2h"))?;
-    let seconds = match unit {
-        "ms" => value / 1000.0,
-        "" | "s" => value,
-        "m" | "min" => value * 60.0,
-        "h" => value * 3600.0,
-        _ => return Err(format!("'{s}': unknown unit '{unit}' (ms, s, m, h)")),
-    };
-    if !(seconds.is_finite() && seconds >= 0.0) {
-        return Err(format!("'{s}' is not a non-negative duration"));
-    }
-    Duration::try_from_secs_f64(seconds).map_err(|_| format!("'{s}' is too long a duration"))
 }
 
 fn parse_resolution(s: &str) -> Result<[u32; 2], String> {

@@ -501,6 +501,30 @@ pub fn validate_threads(threads: usize) -> Result<(), OptionError> {
     Ok(())
 }
 
+/// A duration like `90s`, `10m`, `2h`, `500ms` (a bare number is seconds), zero included:
+/// whether a zero means anything is for the caller to say.
+pub fn parse_duration(s: &str) -> Result<std::time::Duration, String> {
+    let s = s.trim();
+    let split = s.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(s.len());
+    let (number, unit) = s.split_at(split);
+    let value: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a duration like 90s, 10m, 2h"))?;
+    let seconds = match unit {
+        "ms" => value / 1000.0,
+        "" | "s" => value,
+        "m" | "min" => value * 60.0,
+        "h" => value * 3600.0,
+        _ => return Err(format!("'{s}': unknown unit '{unit}' (ms, s, m, h)")),
+    };
+    if !(seconds.is_finite() && seconds >= 0.0) {
+        return Err(format!("'{s}' is not a non-negative duration"));
+    }
+    std::time::Duration::try_from_secs_f64(seconds)
+        .map_err(|_| format!("'{s}' is too long a duration"))
+}
+
 /// Whether [`OptionName`]s are written as command-line flags; set once by the command line.
 static SPELL_AS_FLAGS: AtomicBool = AtomicBool::new(false);
 

@@ -275,26 +275,13 @@ fn round_significant(x: f64, digits: i32) -> f64 {
     (x * scale).round() / scale
 }
 
-/// A duration like `90s`, `10m`, `2h`, `500ms` (a bare number is seconds).
+/// A plan's duration: [`crate::options::parse_duration`], and more than zero.
 pub fn parse_duration(s: &str) -> Result<Duration, String> {
-    let s = s.trim();
-    let split = s.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(s.len());
-    let (number, unit) = s.split_at(split);
-    let value: f64 = number
-        .trim()
-        .parse()
-        .map_err(|_| format!("'{s}' is not a duration like 90s, 10m, 2h"))?;
-    let seconds = match unit {
-        "ms" => value / 1000.0,
-        "" | "s" => value,
-        "m" | "min" => value * 60.0,
-        "h" => value * 3600.0,
-        _ => return Err(format!("'{s}': unknown unit '{unit}' (ms, s, m, h)")),
-    };
-    if !(seconds.is_finite() && seconds > 0.0) {
-        return Err(format!("'{s}' is not a positive duration"));
+    let d = crate::options::parse_duration(s)?;
+    if d.is_zero() {
+        return Err(format!("'{}' is not a positive duration", s.trim()));
     }
-    Ok(Duration::from_secs_f64(seconds))
+    Ok(d)
 }
 
 /// The settings a level passes down to the levels below it.
