@@ -152,6 +152,7 @@ fn subjects() -> Vec<Subject> {
     let options = LoadOptions {
         accel: AccelKind::Bvh,
         lenient: true,
+        shading_normals: true,
     };
     match scene::load(&path, &options) {
         Ok(scene) => match scene.geometry.bounds() {

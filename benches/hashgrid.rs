@@ -48,6 +48,7 @@ impl Surfaces {
             &LoadOptions {
                 accel: AccelKind::Bvh,
                 lenient: true,
+                shading_normals: true,
             },
         )
         .expect("bench scene loads");

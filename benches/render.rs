@@ -7,8 +7,9 @@ use std::path::Path;
 use std::time::Duration;
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext, Technique};
-use vmerge::render::RenderOptions;
+use vmerge::integrator::{self, RenderContext};
+use vmerge::options::RenderOptions;
+use vmerge::options::Technique;
 use vmerge::scene::Camera;
 
 mod common;

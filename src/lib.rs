@@ -8,13 +8,17 @@
 pub mod accel;
 pub mod bsdf;
 pub mod color;
+pub mod files;
 pub mod film;
 pub mod frame;
 pub mod hashgrid;
 pub mod integrator;
 pub mod light;
+pub mod memory;
+pub mod options;
 pub mod preview;
 pub mod render;
 pub mod sampling;
 pub mod scene;
+pub mod texture;
 pub mod tools;

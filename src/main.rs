@@ -1,13 +1,17 @@
 //! The `vmerge` command line: parses arguments, calls the library, prints.
 
 use anyhow::{Context, Result};
+use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 use vmerge::accel::AccelKind;
-use vmerge::integrator::Technique;
+use vmerge::options::{DensityMis, OptionName, RenderOptions, Technique};
+
+/// The options' defaults, as the library writes them.
+const DEFAULT: RenderOptions = RenderOptions::DEFAULT;
 
 #[derive(Parser)]
 #[command(
@@ -41,8 +45,14 @@ enum Command {
         a: PathBuf,
         b: PathBuf,
     },
-    /// Print the mean absolute and RMS error between two images.
-    Errors { a: PathBuf, b: PathBuf },
+    /// Print the mean absolute and RMS error between two images (B the reference).
+    Errors {
+        a: PathBuf,
+        b: PathBuf,
+        /// Print the relative MSE, mean of (a - b)^2 / (b^2 + 0.01), instead.
+        #[arg(long)]
+        relative: bool,
+    },
     /// Print the mean RGB of an image.
     Average { input: PathBuf },
     /// Print the render time recorded in a render.
@@ -58,6 +68,9 @@ enum Command {
         /// One chart per trace window.
         #[arg(long)]
         traces: bool,
+        /// The error drawn: mean absolute (mae) or RMS (rmse).
+        #[arg(long, value_parser = metric_parser(), default_value = "rmse")]
+        metric: Metric,
     },
     /// Serve a page showing renders: exposure, metadata, error chart, split comparison.
     View {
@@ -67,6 +80,8 @@ enum Command {
         #[arg(long, value_name = "ADDR", default_value = vmerge::preview::DEFAULT_ADDRESS)]
         address: SocketAddr,
     },
+    /// Run a plan of renders (or print its cells' commands), show its state, write its report.
+    Batch(BatchArgs),
 }
 
 /// `--preview [ADDR]`: a live page of the render at ADDR (default: loopback, any free port).
@@ -79,20 +94,20 @@ struct PreviewArg {
 
 #[derive(Args)]
 struct RenderArgs {
-    /// The scene file (TOML).
+    /// The scene file: TOML, or pbrt-v4 (`.pbrt`).
     scene: PathBuf,
-    #[arg(long, short = 't', value_enum, default_value_t = Technique::Pt)]
+    #[arg(long, short = 't', value_parser = technique_parser(), default_value = DEFAULT.technique.name())]
     technique: Technique,
     /// Stop after N iterations (one sample per pixel each).
     #[arg(long, short = 'n')]
     iterations: Option<u64>,
     /// Stop after this time (e.g. 90s, 10m, 2h).
-    #[arg(long, value_parser = parse_duration)]
+    #[arg(long, value_parser = vmerge::options::parse_duration)]
     time: Option<Duration>,
     /// Output EXR; a PNG preview is written next to it.
     #[arg(long, short = 'o', default_value = "render.exr")]
     output: PathBuf,
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = DEFAULT.seed)]
     seed: u64,
     /// Worker threads (default: all cores); the image does not depend on it.
     #[arg(long)]
@@ -103,7 +118,7 @@ struct RenderArgs {
     /// WxH, e.g. 512x512.
     #[arg(long, value_parser = parse_resolution)]
     resolution: Option<[u32; 2]>,
-    #[arg(long, value_enum, default_value_t = AccelKind::default_kind())]
+    #[arg(long, value_parser = accel_parser(), default_value = AccelKind::default_kind().name())]
     accel: AccelKind,
     /// Reference image: record the error series in the output.
     #[arg(long)]
@@ -112,7 +127,7 @@ struct RenderArgs {
     #[arg(long = "trace", value_parser = parse_trace)]
     traces: Vec<vmerge::film::TraceWindow>,
     /// Write the image every interval (e.g. 10m).
-    #[arg(long, value_parser = parse_duration)]
+    #[arg(long, value_parser = vmerge::options::parse_duration)]
     snapshot: Option<Duration>,
     /// Do not write the PNG preview.
     #[arg(long)]
@@ -120,6 +135,9 @@ struct RenderArgs {
     /// Clamp Phong materials with kd + ks > 1 instead of rejecting the scene.
     #[arg(long)]
     lenient: bool,
+    /// The memory the render may use, e.g. 8G (default: what the machine has available).
+    #[arg(long, value_parser = vmerge::memory::parse_size)]
+    memory_limit: Option<u64>,
     #[command(flatten)]
     preview: PreviewArg,
     #[command(flatten)]
@@ -129,7 +147,7 @@ struct RenderArgs {
 #[derive(Args)]
 struct TechniqueArgs {
     /// MIS power (2 = power heuristic, 1 = balance heuristic).
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = DEFAULT.beta)]
     beta: f32,
     /// Merge radius in world units (default: 0.003 x the scene's bounding-sphere diameter).
     #[arg(long)]
@@ -141,7 +159,7 @@ struct TechniqueArgs {
     #[arg(long)]
     max_path_length: Option<u32>,
     /// Path length in segments from which Russian roulette may end paths.
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = DEFAULT.roulette)]
     roulette: u32,
     /// Vertex merging only (vcm).
     #[arg(long)]
@@ -149,6 +167,9 @@ struct TechniqueArgs {
     /// Vertex connection only (vcm).
     #[arg(long)]
     no_vm: bool,
+    /// Render every triangle flat, ignoring the meshes' vertex normals.
+    #[arg(long)]
+    no_shading_normals: bool,
     /// bpt: render only the technique with S light and T eye vertices (T counts the camera).
     #[arg(long, value_name = "S,T", value_parser = parse_strategy)]
     strategy: Option<[u32; 2]>,
@@ -156,11 +177,23 @@ struct TechniqueArgs {
     #[arg(long)]
     unweighted: bool,
     /// upg, upg-camera: trace tentative rays 1 or 8 at a time.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = DEFAULT.upg_packet)]
     upg_packet: u32,
     /// upg, upg-camera: trials after which a merge is dropped (and counted).
-    #[arg(long, default_value_t = 10_000)]
+    #[arg(long, default_value_t = DEFAULT.upg_max_trials)]
     upg_max_trials: u32,
+    /// vcm, bpm: weigh merges by the density of light vertices (002's VCM+ or VCM*).
+    #[arg(long, value_parser = density_mis_parser())]
+    density_mis: Option<DensityMis>,
+    /// vcm, bpm: iterations whose light vertices fill the density map.
+    #[arg(long, default_value_t = DEFAULT.density_map_iterations)]
+    density_map_iterations: u32,
+    /// Light sub-paths per iteration, n_VM (default: one per pixel).
+    #[arg(long)]
+    light_paths: Option<u32>,
+    /// Leave out paths of fewer segments (3 drops direct light).
+    #[arg(long, default_value_t = DEFAULT.min_path_length)]
+    min_path_length: u32,
 }
 
 #[derive(Args)]
@@ -171,7 +204,7 @@ struct ContinueArgs {
     #[arg(long, short = 'n')]
     iterations: Option<u64>,
     /// Render for this much more time.
-    #[arg(long, value_parser = parse_duration)]
+    #[arg(long, value_parser = vmerge::options::parse_duration)]
     time: Option<Duration>,
     /// Where to write (default: over the input).
     #[arg(long, short = 'o')]
@@ -181,34 +214,46 @@ struct ContinueArgs {
     force: bool,
     #[arg(long)]
     threads: Option<usize>,
-    #[arg(long, value_enum, default_value_t = AccelKind::default_kind())]
+    #[arg(long, value_parser = accel_parser(), default_value = AccelKind::default_kind().name())]
     accel: AccelKind,
-    #[arg(long, value_parser = parse_duration)]
+    #[arg(long, value_parser = vmerge::options::parse_duration)]
     snapshot: Option<Duration>,
     #[arg(long)]
     no_png: bool,
+    /// The memory the render may use, e.g. 8G (default: what the machine has available).
+    #[arg(long, value_parser = vmerge::memory::parse_size)]
+    memory_limit: Option<u64>,
     #[command(flatten)]
     preview: PreviewArg,
 }
 
-fn parse_duration(s: &str) -> Result<Duration, String> {
-    let s = s.trim();
-    let split = s.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(s.len());
-    let (number, unit) = s.split_at(split);
-    let value: f64 = number
-        .parse()
-        .map_err(|_| format!("'{s}' is not a duration like 90s, 10m, 2h"))?;
-    let seconds = match unit {
-        "ms" => value / 1000.0,
-        "" | "s" => value,
-        "m" | "min" => value * 60.0,
-        "h" => value * 3600.0,
-        _ => return Err(format!("'{s}': unknown unit '{unit}' (ms, s, m, h)")),
-    };
-    if !(seconds.is_finite() && seconds >= 0.0) {
-        return Err(format!("'{s}' is not a non-negative duration"));
-    }
-    Ok(Duration::from_secs_f64(seconds))
+/// The techniques by name, with their descriptions in `--help`.
+fn technique_parser() -> impl TypedValueParser<Value = Technique> {
+    let names = Technique::ALL.map(|t| PossibleValue::new(t.name()).help(t.description()));
+    PossibleValuesParser::new(names)
+        .try_map(|name| Technique::from_name(&name).ok_or("no such technique"))
+}
+
+/// 002's heuristics by name.
+fn density_mis_parser() -> impl TypedValueParser<Value = DensityMis> {
+    let names = DensityMis::ALL.map(|d| PossibleValue::new(d.name()).help(d.description()));
+    PossibleValuesParser::new(names).try_map(|name| {
+        DensityMis::ALL
+            .into_iter()
+            .find(|d| d.name() == name)
+            .ok_or("no such heuristic")
+    })
+}
+
+/// The ray-query backends by name.
+fn accel_parser() -> impl TypedValueParser<Value = AccelKind> {
+    let names = AccelKind::ALL.map(|k| PossibleValue::new(k.name()).help(k.description()));
+    PossibleValuesParser::new(names).try_map(|name| {
+        AccelKind::ALL
+            .into_iter()
+            .find(|k| k.name() == name)
+            .ok_or("no such backend")
+    })
 }
 
 fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
@@ -240,6 +285,7 @@ fn parse_trace(s: &str) -> Result<vmerge::film::TraceWindow, String> {
 }
 
 fn main() -> ExitCode {
+    OptionName::spell_as_flags();
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
@@ -264,9 +310,13 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bake { output, input } => Ok(tools::bake(&output, &input)?),
         Command::Strip { output, input } => Ok(tools::strip(&output, &input)?),
         Command::Diff { output, a, b } => Ok(tools::diff(&output, &a, &b)?),
-        Command::Errors { a, b } => {
-            let (mae, rmse) = tools::errors(&a, &b)?;
-            println!("{mae} {rmse}");
+        Command::Errors { a, b, relative } => {
+            if relative {
+                println!("{}", tools::relative_mse(&a, &b)?);
+            } else {
+                let (mae, rmse) = tools::errors(&a, &b)?;
+                println!("{mae} {rmse}");
+            }
             Ok(())
         }
         Command::Average { input } => {
@@ -292,13 +342,16 @@ fn run(cli: Cli) -> Result<()> {
             output,
             inputs,
             traces,
-        } => Ok(tools::plot(&output, &inputs, traces)?),
+            metric,
+        } => Ok(tools::plot(&output, &inputs, traces, metric)?),
         Command::View { files, address } => view(&files, address),
+        Command::Batch(args) => batch(args),
     }
 }
 
 fn set_threads(threads: Option<usize>) -> Result<()> {
     if let Some(n) = threads {
+        vmerge::options::validate_threads(n)?;
         rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build_global()
@@ -308,9 +361,10 @@ fn set_threads(threads: Option<usize>) -> Result<()> {
 }
 
 fn render(args: RenderArgs) -> Result<()> {
+    vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
     let t = args.technique_options;
-    let options = vmerge::render::RenderOptions {
+    let options = RenderOptions {
         technique: args.technique,
         seed: args.seed,
         camera: args.camera,
@@ -326,8 +380,12 @@ fn render(args: RenderArgs) -> Result<()> {
         unweighted: t.unweighted,
         upg_packet: t.upg_packet,
         upg_max_trials: t.upg_max_trials,
+        density_mis: t.density_mis,
+        density_map_iterations: t.density_map_iterations,
+        no_shading_normals: t.no_shading_normals,
+        light_paths: t.light_paths,
+        min_path_length: t.min_path_length,
     };
-    options.validate()?;
     let setup = vmerge::render::NewRender {
         scene: args.scene,
         options,
@@ -338,6 +396,7 @@ fn render(args: RenderArgs) -> Result<()> {
         snapshot_every: args.snapshot,
         reference: args.reference,
         traces: args.traces,
+        memory_limit: args.memory_limit,
     };
     let stop = StopAfter {
         iterations: args.iterations,
@@ -346,20 +405,42 @@ fn render(args: RenderArgs) -> Result<()> {
     if stop.iterations.is_none() && stop.time.is_none() {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
+    // Checked again by the library; here before the scene loads, so a mistake costs nothing.
+    setup.check()?;
+    let loading = std::time::Instant::now();
     let scene = setup.load_scene()?;
+    eprintln!(
+        "loaded {} in {:.2} s ({} triangles, {} spheres, {} lights)",
+        scene.source.display(),
+        loading.elapsed().as_secs_f64(),
+        scene.geometry.triangles.len(),
+        scene.geometry.spheres.len(),
+        scene.lights.len()
+    );
     let job = setup.job(&scene)?;
     run_job(job, stop, args.preview.preview)
 }
 
 fn resume(args: ContinueArgs) -> Result<()> {
+    vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
     let (film, metadata) = vmerge::film::exr::read_render(&args.input)?;
     let scene = vmerge::render::load_for_continue(&metadata, args.accel, args.force)?;
     let output = args.output.unwrap_or(args.input);
-    let job =
-        vmerge::render::continued_job(&scene, film, metadata, output, !args.no_png, args.snapshot)?;
+    let job = vmerge::render::continued_job(
+        &scene,
+        film,
+        metadata,
+        output,
+        !args.no_png,
+        args.snapshot,
+        args.memory_limit,
+    )?;
     let stop = StopAfter {
-        iterations: args.iterations.map(|n| job.film.iterations + n),
+        // The library refuses a total beyond its limit, which saturating keeps above it.
+        iterations: args
+            .iterations
+            .map(|n| job.film.iterations.saturating_add(n)),
         time: args.time,
     };
     if stop.iterations.is_none() && stop.time.is_none() {
@@ -454,6 +535,7 @@ fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> 
 /// Whether an error is the user's input (a scene, a file, an option) rather than the system.
 fn is_input_error(e: &anyhow::Error) -> bool {
     use vmerge::film::FilmError;
+    use vmerge::options::OptionError;
     use vmerge::render::RenderError;
     let film = |f: &FilmError| !matches!(f, FilmError::Write { .. });
     e.chain().any(|cause| {
@@ -462,10 +544,108 @@ fn is_input_error(e: &anyhow::Error) -> bool {
         } else if let Some(r) = cause.downcast_ref::<RenderError>() {
             match r {
                 RenderError::Film(f) => film(f),
+                // The system failed to take the image, not the user's input.
+                RenderError::WrittenElsewhere { .. } | RenderError::Lost { .. } => false,
                 _ => true,
             }
+        } else if let Some(b) = cause.downcast_ref::<vmerge::tools::batch::BatchError>() {
+            b.is_input()
         } else {
             cause.downcast_ref::<vmerge::scene::SceneError>().is_some()
+                || cause.downcast_ref::<OptionError>().is_some()
+                || cause.downcast_ref::<vmerge::files::FileError>().is_some()
+                || cause
+                    .downcast_ref::<vmerge::memory::MemoryError>()
+                    .is_some()
         }
     })
+}
+
+// `vmerge batch`: plans of renders (src/tools/batch).
+
+use vmerge::tools::batch::{self, Plan};
+use vmerge::tools::Metric;
+
+#[derive(Args)]
+#[command(args_conflicts_with_subcommands = true, arg_required_else_help = true)]
+struct BatchArgs {
+    #[command(subcommand)]
+    command: Option<BatchCommand>,
+    /// The plan (TOML): run every cell that needs it, references first.
+    plan: Option<PathBuf>,
+    /// List what would run, without running it.
+    #[arg(long)]
+    dry_run: bool,
+    /// Print one shell command per cell that can run now (for parallel -j N or xargs -P N);
+    /// run them, then ask again until nothing is printed.
+    #[arg(long, conflicts_with_all = ["dry_run", "slurm"])]
+    jobs: bool,
+    /// Write an sbatch --array script with one array task per cell that can run now.
+    #[arg(long, value_name = "FILE", conflicts_with = "dry_run")]
+    slurm: Option<PathBuf>,
+    #[arg(long, value_parser = accel_parser(), default_value = AccelKind::default_kind().name())]
+    accel: AccelKind,
+}
+
+#[derive(Subcommand)]
+enum BatchCommand {
+    /// Show each cell: done, partial, missing or stale.
+    Status { plan: PathBuf },
+    /// Write OUTPUT/report/index.html (thumbnails, tables, charts) from the cells that exist.
+    Report { plan: PathBuf },
+}
+
+fn metric_parser() -> impl TypedValueParser<Value = Metric> {
+    PossibleValuesParser::new(Metric::ALL.map(|m| m.name()))
+        .try_map(|name| Metric::from_name(&name).ok_or("no such metric"))
+}
+
+fn batch(args: BatchArgs) -> Result<()> {
+    let program = std::env::current_exe().context("finding the vmerge executable")?;
+    match (args.command, args.plan) {
+        (Some(BatchCommand::Status { plan }), _) => {
+            print!("{}", batch::status(&Plan::load(&plan)?))
+        }
+        (Some(BatchCommand::Report { plan }), _) => {
+            let index = batch::report(&Plan::load(&plan)?)?;
+            eprintln!("wrote {}", index.display());
+        }
+        (None, None) => anyhow::bail!("say which plan: vmerge batch PLAN.toml"),
+        (None, Some(file)) => {
+            let plan = Plan::load(&file)?;
+            if args.dry_run {
+                print!("{}", batch::dry_run(&plan));
+            } else if args.jobs {
+                let (lines, later) = batch::jobs(&plan, &program)?;
+                for line in &lines {
+                    println!("{line}");
+                }
+                if later > 0 {
+                    eprintln!("{later} more cells wait for these; ask again once they are done");
+                }
+            } else if let Some(script) = args.slurm {
+                let (tasks, later) = batch::slurm(&plan, &program, &script)?;
+                eprintln!("wrote {} ({tasks} array tasks)", script.display());
+                if later > 0 {
+                    eprintln!("{later} more cells wait for these; write the script again once they are done");
+                }
+            } else {
+                set_threads(plan.threads)?;
+                let flag = vmerge::render::StopFlag::default();
+                let handler_flag = flag.clone();
+                ctrlc::set_handler(move || {
+                    // The first signal ends the current cell's iteration and writes it.
+                    if handler_flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
+                        std::process::exit(130);
+                    }
+                })
+                .context("installing the signal handler")?;
+                let mut bar = batch::ProgressBar::default();
+                let ran = batch::run(&plan, args.accel, &flag, &mut |e| bar.show(e))?;
+                bar.finish();
+                eprintln!("{ran} cells rendered");
+            }
+        }
+    }
+    Ok(())
 }

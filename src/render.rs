@@ -2,11 +2,14 @@
 
 use crate::accel::AccelKind;
 use crate::color::Rgb;
+use crate::files::FileError;
 use crate::film::{exr, png, ErrorTracker, Film, FilmError, Metadata, TraceWindow};
-use crate::integrator::{self, RenderContext, Technique, UpgCounters};
+use crate::integrator::upg::UpgCounters;
+use crate::integrator::{self, RenderContext};
+use crate::memory::MemoryError;
+use crate::options::{OptionError, OptionName, RenderOptions};
 use crate::scene::{Camera, LoadOptions, Scene, SceneError};
-use serde::{Deserialize, Serialize};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -18,112 +21,41 @@ pub enum RenderError {
     Scene(#[from] SceneError),
     #[error(transparent)]
     Film(#[from] FilmError),
-    #[error("say when to stop: --iterations N and/or --time T")]
+    #[error(transparent)]
+    Options(#[from] OptionError),
+    #[error(transparent)]
+    File(#[from] FileError),
+    #[error(transparent)]
+    Memory(#[from] MemoryError),
+    /// The final image could not be written where asked, and went elsewhere.
+    #[error("{}: cannot write the image ({message}); it was written to {} instead", wanted.display(), written.display())]
+    WrittenElsewhere {
+        wanted: PathBuf,
+        written: PathBuf,
+        message: String,
+    },
+    /// The final image could not be written at all.
+    #[error("{}: cannot write the image ({message}), nor a copy in {}; {}", wanted.display(), std::env::temp_dir().display(), match last_good {
+        Some(p) => format!("the last good snapshot is {}", p.display()),
+        None => "no snapshot of it remains, the render is lost".to_string(),
+    })]
+    Lost {
+        wanted: PathBuf,
+        message: String,
+        last_good: Option<PathBuf>,
+    },
+    #[error(
+        "say when to stop: {} N and/or {} T",
+        OptionName("iterations"),
+        OptionName("time")
+    )]
     NoStop,
-    #[error("--strategy and --unweighted apply to --technique bpt, not {0}")]
-    BptOnly(&'static str),
-    #[error("--strategy {0},{1}: no such technique (t counts the camera vertex, so t >= 1 and s + t >= 2)")]
-    NoSuchStrategy(u32, u32),
-    #[error("--no-vc, --no-vm and --alpha do not apply to upg and upg-camera (both connect and merge, at a fixed radius)")]
-    UpgOptions,
-    #[error("--upg-packet {0}: tentative rays go 1 or 8 at a time")]
-    UpgPacket(u32),
-    #[error("--upg-max-trials must be at least 1")]
-    UpgMaxTrials,
-    #[error("{file}: the scene changed since this render began (hash {recorded} recorded, {now} now); use --force to continue anyway")]
+    #[error("{file}: the scene changed since this render began (hash {recorded} recorded, {now} now); use {} to continue anyway", OptionName("force"))]
     SceneChanged {
         file: PathBuf,
         recorded: String,
         now: String,
     },
-}
-
-/// Every option that changes the image. Serialized into the EXR so `continue` can resume.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct RenderOptions {
-    pub technique: Technique,
-    pub seed: u64,
-    pub camera: Option<String>,
-    pub resolution: Option<[u32; 2]>,
-    /// MIS power (1 = balance heuristic, 2 = power heuristic).
-    pub beta: f32,
-    /// Merge radius in world units; `None` = the scene's default.
-    pub radius: Option<f32>,
-    /// Radius shrinking exponent (000 eq. 2.85); `None` = the technique's default.
-    pub alpha: Option<f32>,
-    /// Segments of a full path; `None` = the scene's default, 0 = unbounded.
-    pub max_path_length: Option<u32>,
-    /// Path length (in segments) from which Russian roulette may end paths.
-    pub roulette: u32,
-    pub no_vc: bool,
-    pub no_vm: bool,
-    /// `bpt` only: render the contribution of one (s, t) technique alone.
-    #[serde(default)]
-    pub strategy: Option<[u32; 2]>,
-    /// `bpt` only: leave the MIS weights out (each technique at weight 1).
-    #[serde(default)]
-    pub unweighted: bool,
-    /// `upg`, `upg-camera`: tentative rays traced 1 or 8 at a time.
-    #[serde(default = "default_upg_packet")]
-    pub upg_packet: u32,
-    /// `upg`, `upg-camera`: Bernoulli trials after which a merge is dropped.
-    #[serde(default = "default_upg_max_trials")]
-    pub upg_max_trials: u32,
-}
-
-fn default_upg_packet() -> u32 {
-    1
-}
-
-fn default_upg_max_trials() -> u32 {
-    crate::integrator::upg::acceptance::DEFAULT_MAX_TRIALS
-}
-
-impl RenderOptions {
-    /// Rejects combinations of options that do not mean anything.
-    pub fn validate(&self) -> Result<(), RenderError> {
-        if (self.strategy.is_some() || self.unweighted) && self.technique != Technique::Bpt {
-            return Err(RenderError::BptOnly(self.technique.name()));
-        }
-        let upg = matches!(self.technique, Technique::Upg | Technique::UpgCamera);
-        if upg && (self.no_vc || self.no_vm || self.alpha.is_some()) {
-            return Err(RenderError::UpgOptions);
-        }
-        if self.upg_packet != 1 && self.upg_packet != 8 {
-            return Err(RenderError::UpgPacket(self.upg_packet));
-        }
-        if self.upg_max_trials == 0 {
-            return Err(RenderError::UpgMaxTrials);
-        }
-        if let Some([s, t]) = self.strategy {
-            if t == 0 || s + t < 2 {
-                return Err(RenderError::NoSuchStrategy(s, t));
-            }
-        }
-        Ok(())
-    }
-}
-
-impl Default for RenderOptions {
-    fn default() -> Self {
-        RenderOptions {
-            technique: Technique::Pt,
-            seed: 0,
-            camera: None,
-            resolution: None,
-            beta: 2.0,
-            radius: None,
-            alpha: None,
-            max_path_length: None,
-            roulette: 3,
-            no_vc: false,
-            no_vm: false,
-            strategy: None,
-            unweighted: false,
-            upg_packet: default_upg_packet(),
-            upg_max_trials: default_upg_max_trials(),
-        }
-    }
 }
 
 /// Renders `iterations` iterations of `options.technique` and returns the film: the library
@@ -247,6 +179,18 @@ impl RenderJob<'_> {
         mut observer: Option<&mut dyn Observer>,
         mut on_progress: impl FnMut(&Progress),
     ) -> Result<(), RenderError> {
+        if stop.iterations.is_none() && stop.time.is_none() {
+            return Err(RenderError::NoStop);
+        }
+        crate::options::validate_run(stop.iterations, stop.time, self.snapshot_every)?;
+        for path in self.written_paths() {
+            for stale in crate::film::remove_stale_temporaries(&path) {
+                eprintln!(
+                    "removed {}, a temporary file a stopped write left",
+                    stale.display()
+                );
+            }
+        }
         let camera = Camera::new(
             self.scene.camera(self.options.camera.as_deref())?,
             self.film.width,
@@ -266,6 +210,8 @@ impl RenderJob<'_> {
         let mut upg = UpgCounters::default();
         let mut iterations_here = 0u64;
         let mut progress = None::<Progress>;
+        // The output as of the last snapshot written, if one was.
+        let mut last_good = None::<PathBuf>;
         loop {
             let done_iterations = stop.iterations.is_some_and(|n| self.film.iterations >= n);
             let done_time = stop.time.is_some_and(|t| start.elapsed() >= t);
@@ -314,7 +260,12 @@ impl RenderJob<'_> {
                 .is_some_and(|every| last_snapshot.elapsed() >= every)
             {
                 self.metadata.statistics = statistics(&now);
-                self.write()?;
+                match self.write() {
+                    Ok(()) => last_good = Some(self.output.clone()),
+                    Err(e) => eprintln!(
+                        "warning: snapshot not written: {e}; rendering on, trying again at the next snapshot"
+                    ),
+                }
                 last_snapshot = Instant::now();
             }
             progress = Some(now);
@@ -327,7 +278,55 @@ impl RenderJob<'_> {
         if let Some(rates) = progress.as_ref().and_then(Progress::upg_statistics) {
             self.metadata.statistics.extend(rates);
         }
-        self.write()
+        self.write_final(last_good)
+    }
+
+    /// The files a write makes: the EXR and, if wanted, its preview.
+    fn written_paths(&self) -> Vec<PathBuf> {
+        let mut paths = vec![self.output.clone()];
+        if self.png {
+            paths.push(self.output.with_extension("png"));
+        }
+        paths
+    }
+
+    /// Writes the final image; where that fails, writes it to the temporary directory and
+    /// says so, and where that fails too, names the last good snapshot: the render is never
+    /// lost silently.
+    fn write_final(&self, last_good: Option<PathBuf>) -> Result<(), RenderError> {
+        let Err(e) = exr::write_render(&self.output, &self.film, &self.metadata) else {
+            if self.png {
+                let preview = self.output.with_extension("png");
+                let mean = self.film.mean();
+                if let Err(e) =
+                    png::write_preview(&preview, &mean, self.film.width, self.film.height)
+                {
+                    // The preview is a convenience; the render itself is safe.
+                    eprintln!("warning: {e}; the render is written");
+                }
+            }
+            return Ok(());
+        };
+        for path in self.written_paths() {
+            crate::film::remove_stale_temporaries(&path);
+        }
+        let name = self
+            .output
+            .file_name()
+            .map_or("render.exr".into(), |n| n.to_string_lossy().into_owned());
+        let fallback = std::env::temp_dir().join(format!("vmerge-{}-{name}", std::process::id()));
+        match exr::write_render(&fallback, &self.film, &self.metadata) {
+            Ok(()) => Err(RenderError::WrittenElsewhere {
+                wanted: self.output.clone(),
+                written: fallback,
+                message: e.to_string(),
+            }),
+            Err(_) => Err(RenderError::Lost {
+                wanted: self.output.clone(),
+                message: e.to_string(),
+                last_good: last_good.filter(|p| p.exists()),
+            }),
+        }
     }
 
     /// Writes the image (and its preview) atomically.
@@ -356,23 +355,98 @@ pub struct NewRender {
     pub snapshot_every: Option<Duration>,
     pub reference: Option<PathBuf>,
     pub traces: Vec<TraceWindow>,
+    /// The memory the render may use; `None` = what the machine has available.
+    pub memory_limit: Option<u64>,
+}
+
+/// Checks the output against everything a render reads (the EXR and, if written, the
+/// preview): the write must be possible and destroy no input.
+fn check_output(output: &Path, png: bool, inputs: &[PathBuf]) -> Result<(), FileError> {
+    crate::files::check_output(output, inputs)?;
+    if png {
+        let preview = output.with_extension("png");
+        if preview == output {
+            return Err(FileError {
+                file: output.into(),
+                message: "is where the PNG preview goes; name an .exr file".into(),
+            });
+        }
+        crate::files::check_output(&preview, inputs)?;
+    }
+    Ok(())
+}
+
+/// The memory the job will need against the limit.
+fn check_memory(
+    scene: &Scene,
+    options: &RenderOptions,
+    pixels: u64,
+    limit: Option<u64>,
+) -> Result<(), MemoryError> {
+    let max_path_length = match options
+        .max_path_length
+        .unwrap_or(scene.defaults.max_path_length)
+    {
+        0 => u32::MAX,
+        n => n,
+    };
+    let need = crate::memory::estimate(
+        options.technique,
+        pixels,
+        max_path_length,
+        options.roulette,
+        rayon::current_num_threads(),
+    );
+    crate::memory::check(&need, limit)
 }
 
 impl NewRender {
+    /// Everything that can be checked before the scene loads: the options, trace windows only
+    /// with a reference, an output that can be written and is neither the scene file nor the
+    /// reference.
+    pub fn check(&self) -> Result<(), RenderError> {
+        self.options.validate()?;
+        if !self.traces.is_empty() && self.reference.is_none() {
+            return Err(OptionError::Needs {
+                option: OptionName("trace"),
+                message: format!(
+                    "error windows are measured against {}",
+                    OptionName("reference")
+                ),
+            }
+            .into());
+        }
+        let mut inputs = vec![self.scene.clone()];
+        inputs.extend(self.reference.clone());
+        check_output(&self.output, self.png, &inputs)?;
+        Ok(())
+    }
+
     pub fn load_scene(&self) -> Result<Scene, SceneError> {
         crate::scene::load(
             &self.scene,
             &LoadOptions {
                 accel: self.accel,
                 lenient: self.lenient,
+                shading_normals: !self.options.no_shading_normals,
             },
         )
     }
 
     /// The job over `scene`, with a fresh film and the reference loaded and checked.
     pub fn job<'a>(&self, scene: &'a Scene) -> Result<RenderJob<'a>, RenderError> {
+        self.check()?;
+        let mut inputs = scene.inputs.clone();
+        inputs.extend(self.reference.clone());
+        check_output(&self.output, self.png, &inputs)?;
         let [width, height] = self.options.resolution.unwrap_or(scene.defaults.resolution);
         scene.camera(self.options.camera.as_deref())?;
+        check_memory(
+            scene,
+            &self.options,
+            width as u64 * height as u64,
+            self.memory_limit,
+        )?;
         let canonical = std::fs::canonicalize(&self.scene).unwrap_or_else(|_| self.scene.clone());
         let mut metadata = Metadata::new(
             canonical.to_string_lossy().into_owned(),
@@ -421,6 +495,7 @@ pub fn load_for_continue(
         &LoadOptions {
             accel,
             lenient: false,
+            shading_normals: !metadata.options.no_shading_normals,
         },
     )?;
     if scene.source_hash != metadata.scene_hash && !force {
@@ -442,7 +517,18 @@ pub fn continued_job(
     output: PathBuf,
     png: bool,
     snapshot_every: Option<Duration>,
+    memory_limit: Option<u64>,
 ) -> Result<RenderJob<'_>, RenderError> {
+    metadata.options.validate()?;
+    let mut inputs = scene.inputs.clone();
+    inputs.extend(metadata.reference.as_ref().map(PathBuf::from));
+    check_output(&output, png, &inputs)?;
+    check_memory(
+        scene,
+        &metadata.options,
+        film.pixel_count() as u64,
+        memory_limit,
+    )?;
     let tracker = match &metadata.reference {
         Some(path) => {
             let path = PathBuf::from(path);

@@ -302,13 +302,20 @@ fn embree_errors_become_rust_errors() {
 }
 
 #[test]
-fn bvh_rejects_out_of_range_indices() {
+fn out_of_range_indices_are_rejected() {
     let g = Geometry {
         positions: vec![Vec3::ZERO; 2],
         triangles: vec![[0, 1, 2]],
         spheres: vec![],
     };
-    assert!(accel::build(AccelKind::Bvh, &g).is_err());
+    for kind in [AccelKind::Bvh, AccelKind::default_kind()] {
+        let result = accel::build(kind, &g);
+        assert!(
+            matches!(result, Err(vmerge::accel::AccelError::InvalidGeometry(_))),
+            "{kind:?}: {:?}",
+            result.err()
+        );
+    }
 }
 
 /// Analytic spheres: a ray from inside hits the far side; a tangent ray at a known distance.

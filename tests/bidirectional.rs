@@ -4,7 +4,7 @@
 mod common;
 
 use common::{assert_agree, assert_means_agree, floor_view, load, options, render_stats};
-use vmerge::integrator::Technique;
+use vmerge::options::Technique;
 use vmerge::render::render_iterations;
 
 /// The furnace's radiance is exactly 1; each estimate must be within 0.5% of it, a bound the

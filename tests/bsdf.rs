@@ -262,3 +262,60 @@ fn mirror_reflects_exactly() {
     assert!((s.f.g * s.wi.z / s.pdf_w - 0.8).abs() < 1e-6);
     assert!(b.eval(s.wi).f.is_black());
 }
+
+/// With a shading normal the BSDF is one function of the two directions whichever side
+/// builds it: the radiance BSDF seen from `c` (towards the camera) evaluated towards `l`
+/// (towards the light) equals the importance BSDF seen from `l` evaluated towards `c`, pdfs
+/// swapped, so eye and light sub-paths weigh a connection alike. Relative to the flat BSDF of
+/// the shading frame, the radiance side carries |l.ns| / |l.ng|, the importance side Veach's
+/// adjoint factor |wo.ng| |wi.ns| / (|wo.ns| |wi.ng|) once multiplied by |cos(ng, wi)|.
+#[test]
+fn shading_normals_keep_one_bsdf_for_both_sides() {
+    use vmerge::bsdf::{Albedo, Normals};
+    let ng = Vec3::Z;
+    let ns = Vec3::new(0.3, -0.2, 0.9).normalize();
+    let normals = Normals { ng, ns };
+    let kinds = [
+        MaterialKind::Lambert {
+            kd: Rgb::splat(0.7),
+        },
+        phong(0.3, 0.4, 12.0),
+    ];
+    let dirs = [
+        direction(0.3, 0.5),
+        direction(1.1, 2.0),
+        direction(0.8, 4.0),
+        direction(1.45, 5.5),
+    ];
+    for kind in &kinds {
+        let albedo = Albedo::of(kind);
+        for &c in &dirs {
+            for &l in &dirs {
+                let eye = Bsdf::shaded(kind, albedo, normals, c, TransportMode::Radiance).unwrap();
+                let light =
+                    Bsdf::shaded(kind, albedo, normals, l, TransportMode::Importance).unwrap();
+                let (e, i) = (eye.eval(l), light.eval(c));
+                let tol = 1e-5 * e.f.max_component().max(1e-3);
+                assert!(
+                    (e.f - i.f).max_component().abs() <= tol,
+                    "{kind:?}: {e:?} vs {i:?}"
+                );
+                assert!(
+                    (i.f - e.f).max_component().abs() <= tol,
+                    "{kind:?}: {e:?} vs {i:?}"
+                );
+                assert!((e.pdf_w - i.rev_pdf_w).abs() <= 1e-5 * e.pdf_w.max(1e-3));
+                assert!((e.rev_pdf_w - i.pdf_w).abs() <= 1e-5 * e.pdf_w.max(1e-3));
+                // The radiance side against the flat BSDF of the shading frame.
+                let flat = Bsdf::new(kind, ns, c, TransportMode::Radiance)
+                    .unwrap()
+                    .eval(l);
+                let factor = l.dot(ns).abs() / l.dot(ng).abs();
+                let expected = flat.f * factor;
+                assert!((e.f - expected).max_component().abs() <= tol.max(1e-6));
+                assert!((expected - e.f).max_component().abs() <= tol.max(1e-6));
+                assert_eq!(eye.cos_theta(l), l.dot(ng).abs());
+            }
+        }
+    }
+}

@@ -7,8 +7,8 @@ use exr::prelude::{
 use std::path::{Path, PathBuf};
 use vmerge::color::Rgb;
 use vmerge::film::{exr as film_exr, png, ErrorSample, Film, FilmError, Metadata, TraceWindow};
-use vmerge::integrator::Technique;
-use vmerge::render::RenderOptions;
+use vmerge::options::RenderOptions;
+use vmerge::options::Technique;
 use vmerge::sampling::Rng;
 
 /// A film whose sums use every bit of the f64 mantissa, plus awkward values.
@@ -30,7 +30,7 @@ fn film(width: u32, height: u32, seed: u64) -> Film {
 
 fn metadata() -> Metadata {
     let options = RenderOptions {
-        technique: Technique::Bpt,
+        technique: Technique::Vcm,
         seed: 12345678901234567890,
         resolution: Some([24, 16]),
         radius: Some(0.02),

@@ -9,13 +9,19 @@
 //! functions the integrators call. The BPT weights are also checked one by one against the
 //! power heuristic evaluated directly from products of area pdfs (000 eq. (2.47)); the VCM
 //! weights are checked with merges by density estimation and with UPG's merges from either
-//! side, whose clamped acceptance (000 eqs. (2.80)-(2.82)) binds at the larger radii.
+//! side, whose clamped acceptance (000 eqs. (2.80)-(2.82)) binds at the larger radii, and
+//! with merge-only UPG, whose merges share each path among themselves.
 
 mod common;
 
 use glam::Vec3;
 use vmerge::bsdf::{Bsdf, TransportMode};
-use vmerge::integrator::mis::{self, BptStep, BptVertex, Power, VcmVertex, VcmWeights, VmHere};
+use vmerge::integrator::mis::{
+    self, BptStep, BptVertex, ConnectionPdfs, Gather, LightSamplePdfs, Neighbour, Power, VcmVertex,
+    VcmWeights, VmHere, NO_DENSITY,
+};
+use vmerge::integrator::upg::Deferred;
+use vmerge::options::DensityMis;
 use vmerge::sampling::{Rng, Stream};
 use vmerge::scene::{Camera, Scene};
 
@@ -314,18 +320,7 @@ fn bpt_weights(power: Power, setup: &Setup, path: &FullPath, q: &PathPdfs) -> Ve
             if s == 0 {
                 mis::bpt_hit_light(power, &eye[0], l.pick * l.pdf_a, l.pick * l.emission_pdf_w)
             } else if s == 1 {
-                mis::bpt_light_sample(
-                    power,
-                    &eye[1],
-                    q.eye_w[1],
-                    q.light_w[1],
-                    l.pick * l.direct_pdf_w,
-                    l.direct_pdf_w,
-                    l.emission_pdf_w,
-                    q.cos_prev[1],
-                    l.cos_at_light,
-                    l.delta,
-                )
+                mis::bpt_light_sample(power, &eye[1], &light_sample_pdfs(path, q))
             } else if s == k {
                 let camera_pdf_a = q.eye_a[k - 1] * setup.n();
                 mis::bpt_to_camera(
@@ -336,15 +331,7 @@ fn bpt_weights(power: Power, setup: &Setup, path: &FullPath, q: &PathPdfs) -> Ve
                     setup.n(),
                 )
             } else {
-                mis::bpt_connect(
-                    power,
-                    &light[s - 1],
-                    &eye[s],
-                    q.eye_w[s - 1],
-                    q.light_w[s],
-                    q.eye_a[s - 1],
-                    q.light_a[s],
-                )
+                mis::bpt_connect(power, &light[s - 1], &eye[s], &connection_pdfs(q, s))
             }
         })
         .collect()
@@ -368,38 +355,104 @@ fn direct_weights(power: Power, path: &FullPath, q: &PathPdfs) -> Vec<f64> {
     pdfs.iter().map(|p| p / sum).collect()
 }
 
-/// How merges are made: which merges are techniques.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Gather {
-    /// Density estimation (vcm): every non-delta vertex.
-    Density,
-    /// UPG from the light side: the merge vertex's predecessor on the light side is a
-    /// non-delta surface vertex.
-    UpgLight,
-    /// UPG from the camera side: its successor on the eye side is one.
-    UpgCamera,
+/// The pdfs of light sampling at x_1, from the path's own.
+fn light_sample_pdfs(path: &FullPath, q: &PathPdfs) -> LightSamplePdfs {
+    let l = path.light;
+    LightSamplePdfs {
+        bsdf_pdf_w: q.eye_w[1],
+        bsdf_rev_pdf_w: q.light_w[1],
+        light_pdf_w: l.pick * l.direct_pdf_w,
+        direct_pdf_w: l.direct_pdf_w,
+        emission_pdf_w: l.emission_pdf_w,
+        cos_at_receiver: q.cos_prev[1],
+        cos_at_light: l.cos_at_light,
+        delta_light: l.delta,
+    }
+}
+
+/// The pdfs of the connection between light vertex x_{s-1} and eye vertex x_s.
+fn connection_pdfs(q: &PathPdfs, s: usize) -> ConnectionPdfs {
+    ConnectionPdfs {
+        light_rev_pdf_w: q.eye_w[s - 1],
+        eye_rev_pdf_w: q.light_w[s],
+        light_pdf_a: q.eye_a[s - 1],
+        eye_pdf_a: q.light_a[s],
+    }
+}
+
+/// A sub-path's MIS quantities at a vertex, with UPG's deferred merge.
+#[derive(Clone, Copy, Default)]
+struct State {
+    mis: VcmVertex,
+    deferred: Deferred,
+}
+
+impl State {
+    fn at(&self, w: &VcmWeights, rev_pdf_w: f32) -> VcmVertex {
+        self.deferred.settle(w, self.mis, rev_pdf_w)
+    }
+
+    fn arrive(&mut self, w: &VcmWeights, distance: f32, cos: f32, with_distance: bool) {
+        let arrival = w.arrive(&mut self.mis, distance, cos, with_distance);
+        self.deferred.arrive(arrival);
+    }
+
+    /// Scattering at a vertex as vcm.rs does it: the deferred merge settles, and a merge here
+    /// gathered from the other side is deferred in turn.
+    fn scatter(
+        &mut self,
+        w: &VcmWeights,
+        cos_out: f32,
+        pdf_w: f32,
+        rev_pdf_w: f32,
+        delta: bool,
+        (here, rho): (VmHere, f32),
+    ) {
+        if !delta {
+            self.mis = self.at(w, rev_pdf_w);
+        }
+        let ratio = w.scatter(
+            &mut self.mis,
+            cos_out,
+            pdf_w,
+            rev_pdf_w,
+            delta,
+            (here == VmHere::Valid, rho),
+        );
+        self.deferred = if !delta && here == VmHere::Deferred {
+            Deferred::new(w, ratio, cos_out)
+        } else {
+            Deferred::NONE
+        };
+    }
 }
 
 /// The VCM weights of the connection techniques s = 0..=k and the merges at x_1..x_{k-1},
-/// following vcm.rs: the light sub-path arrives at x_i, settles a deferred merge, is stored,
-/// and scatters on; the eye sub-path likewise from the camera.
+/// following vcm.rs: the light sub-path arrives at x_i, keeps a deferred merge only on a
+/// surface, is stored, and scatters on; the eye sub-path likewise from the camera. Which merges
+/// are techniques is the library's one rule, [`Gather::merge_at`].
+///
+/// `inv_k` gives each vertex's 1 / k for 002's heuristics (weights made
+/// [`VcmWeights::with_density`]); empty for VCM and UPG.
 fn vcm_weights(
     w: &VcmWeights,
     gather: Gather,
     path: &FullPath,
     q: &PathPdfs,
+    inv_k: &[f32],
 ) -> (Vec<f32>, Vec<f32>) {
     let k = q.k;
     let l = path.light;
     let surface = |i: usize| (1..k).contains(&i) && q.connectable[i];
-    let known = |ok: bool| if ok { VmHere::Valid } else { VmHere::Invalid };
+    // A merge's density factor and 1 / k at x_i, as vcm.rs takes them at each surface vertex.
+    let density = |i: usize| match inv_k.get(i) {
+        Some(&inv) if surface(i) => (w.mis(inv), inv),
+        _ => NO_DENSITY,
+    };
+    let rho = |i: usize| density(i).0;
+    let neighbour = |i: usize| Neighbour::surface_if(surface(i));
     let merge_valid = |j: usize| {
-        surface(j)
-            && match gather {
-                Gather::Density => true,
-                Gather::UpgLight => surface(j - 1),
-                Gather::UpgCamera => surface(j + 1),
-            }
+        surface(j) && gather.merge_at(neighbour(j - 1), neighbour(j + 1)) == VmHere::Valid
     };
     // mis(eta_j) of the merge at x_j from the gathering side's area pdf of x_j (000 eq. 2.80).
     let eta = |j: usize| {
@@ -409,65 +462,63 @@ fn vcm_weights(
         };
         w.eta_if(merge_valid(j), w.mis(1.0 / gather_pdf))
     };
-    let mut light = vec![VcmVertex::default(); k];
-    let mut state = w.light_origin(
-        l.pick * l.pdf_a,
-        l.pick * l.emission_pdf_w,
-        if l.infinite { 1.0 } else { l.cos_at_light },
-        l.delta,
-    );
+    let mut light = vec![State::default(); k];
+    let mut state = State {
+        mis: w.light_origin(
+            l.pick * l.pdf_a,
+            l.pick * l.emission_pdf_w,
+            if l.infinite { 1.0 } else { l.cos_at_light },
+            l.delta,
+        ),
+        deferred: Deferred::NONE,
+    };
     #[allow(clippy::needless_range_loop)] // i indexes several arrays of the path
     for i in 1..k {
-        w.arrive(
-            &mut state,
+        state.arrive(
+            w,
             q.dist2[i - 1].sqrt(),
             q.cos_prev[i],
             !(i == 1 && l.infinite),
         );
-        w.drop_pending(&mut state, surface(i));
+        state.deferred.keep_if(surface(i));
+        if surface(i) && !inv_k.is_empty() {
+            w.visit(&mut state.mis, inv_k[i]);
+        }
         light[i] = state;
         if i + 1 < k {
-            let here = match gather {
-                Gather::Density => VmHere::Valid,
-                Gather::UpgLight => known(surface(i - 1)),
-                Gather::UpgCamera => VmHere::Deferred,
-            };
+            let here = gather.merge_at(neighbour(i - 1), Neighbour::Unknown);
             let delta = !q.connectable[i];
-            w.scatter(
-                &mut state,
-                q.cos_next[i],
-                q.light_w[i],
-                q.eye_w[i],
-                delta,
-                here,
-            );
+            let (cos, pdf, rev) = (q.cos_next[i], q.light_w[i], q.eye_w[i]);
+            state.scatter(w, cos, pdf, rev, delta, (here, rho(i)));
         }
     }
-    let mut eye = vec![VcmVertex::default(); k + 1];
-    let mut state = w.camera_origin(q.camera_pdf_w);
+    let mut eye = vec![State::default(); k + 1];
+    let mut state = State {
+        mis: w.camera_origin(q.camera_pdf_w),
+        deferred: Deferred::NONE,
+    };
     for i in (1..k).rev() {
-        w.arrive(&mut state, q.dist2[i].sqrt(), q.cos_next[i], true);
-        w.drop_pending(&mut state, surface(i));
+        state.arrive(w, q.dist2[i].sqrt(), q.cos_next[i], true);
+        state.deferred.keep_if(surface(i));
+        if surface(i) && !inv_k.is_empty() {
+            w.visit(&mut state.mis, inv_k[i]);
+        }
         eye[i] = state;
-        let here = match gather {
-            Gather::Density => VmHere::Valid,
-            Gather::UpgLight => VmHere::Deferred,
-            Gather::UpgCamera => known(surface(i + 1)),
-        };
+        let here = gather.merge_at(Neighbour::Unknown, neighbour(i + 1));
         let delta = !q.connectable[i];
-        w.scatter(
-            &mut state,
+        state.scatter(
+            w,
             q.cos_prev[i],
             q.eye_w[i],
             q.light_w[i],
             delta,
-            here,
+            (here, rho(i)),
         );
     }
     // Reaching the light: area lights add the last segment, the sky does not; the light
     // point is no surface to merge through.
     if !l.infinite {
-        w.arrive(&mut state, q.dist2[0].sqrt(), l.cos_at_light, true);
+        state.arrive(w, q.dist2[0].sqrt(), l.cos_at_light, true);
     }
     eye[0] = state;
     let vc = (0..=k)
@@ -476,33 +527,30 @@ fn vcm_weights(
                 return 0.0;
             }
             if s == 0 {
-                w.hit_light(&eye[0], l.pick * l.pdf_a, l.pick * l.emission_pdf_w)
+                w.hit_light(&eye[0].mis, l.pick * l.pdf_a, l.pick * l.emission_pdf_w)
             } else if s == 1 {
                 w.light_sample(
-                    &eye[1],
-                    eta(1),
-                    q.eye_w[1],
-                    q.light_w[1],
-                    l.pick * l.direct_pdf_w,
-                    l.direct_pdf_w,
-                    l.emission_pdf_w,
-                    q.cos_prev[1],
-                    l.cos_at_light,
-                    l.delta,
+                    &eye[1].at(w, q.light_w[1]),
+                    eta(1) * rho(1),
+                    &light_sample_pdfs(path, q),
                 )
             } else if s == k {
                 let camera_pdf_a = q.eye_a[k - 1] * w.light_paths;
-                w.to_camera(&light[k - 1], eta(k - 1), camera_pdf_a, q.eye_w[k - 1])
+                let rev = q.eye_w[k - 1];
+                w.to_camera(
+                    &light[k - 1].at(w, rev),
+                    eta(k - 1) * rho(k - 1),
+                    camera_pdf_a,
+                    rev,
+                )
             } else {
+                let p = connection_pdfs(q, s);
                 w.connect(
-                    &light[s - 1],
-                    eta(s - 1),
-                    &eye[s],
-                    eta(s),
-                    q.eye_w[s - 1],
-                    q.light_w[s],
-                    q.light_a[s],
-                    q.eye_a[s - 1],
+                    &light[s - 1].at(w, p.light_rev_pdf_w),
+                    eta(s - 1) * rho(s - 1),
+                    &eye[s].at(w, p.eye_rev_pdf_w),
+                    eta(s) * rho(s),
+                    &p,
                 )
             }
         })
@@ -514,7 +562,14 @@ fn vcm_weights(
             if !merge_valid(j) {
                 return 0.0;
             }
-            w.merge(&light[j], &eye[j], q.eye_w[j], q.light_w[j], eta(j))
+            let (pdf_w, rev_pdf_w) = (q.eye_w[j], q.light_w[j]);
+            w.merge(
+                &light[j].at(w, pdf_w),
+                &eye[j].at(w, rev_pdf_w),
+                (pdf_w, rev_pdf_w),
+                eta(j),
+                density(j),
+            )
         })
         .collect();
     (vc, vm)
@@ -552,7 +607,8 @@ fn check_scene(name: &str) -> (usize, usize) {
         scene: &scene,
         camera: Camera::new(&desc, PIXELS, PIXELS),
     };
-    let (mut specular, mut merged, mut clamped) = (0, 0, 0);
+    let (mut specular, mut merged, mut clamped, mut shared_merges) = (0, 0, 0, 0);
+    let mut reweighted = std::collections::HashMap::<&str, usize>::new();
     for path in &paths {
         let q = evaluate(&setup, path);
         // A path the BSDFs cannot scatter along (light behind a surface) has no techniques.
@@ -588,7 +644,7 @@ fn check_scene(name: &str) -> (usize, usize) {
                     } else {
                         VcmWeights::clamped(power, radius, setup.n())
                     };
-                    let (vc, vm) = vcm_weights(&w, gather, path, &q);
+                    let (vc, vm) = vcm_weights(&w, gather, path, &q, &[]);
                     let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
                     assert!(
                         (sum - 1.0).abs() < 1e-4,
@@ -600,10 +656,25 @@ fn check_scene(name: &str) -> (usize, usize) {
                         merged += 1;
                     }
                     if gather != Gather::Density {
+                        // Merge-only UPG (000 sec. 5.2): the merges of a path that has any
+                        // share it among themselves.
+                        let only = VcmWeights::clamped_merges_only(power, radius, setup.n());
+                        let (_, only_vm) = vcm_weights(&only, gather, path, &q, &[]);
+                        let sum: f32 = only_vm.iter().sum();
+                        let merges = only_vm.iter().filter(|&&m| m > 0.0).count();
+                        assert!(
+                            merges == 0 || (sum - 1.0).abs() < 1e-4,
+                            "{name}: merge-only {gather:?} weights of a {}-segment path sum \
+                             to {sum} (beta {beta}, r {radius}): {only_vm:?}",
+                            q.k
+                        );
+                        if merges > 1 {
+                            shared_merges += 1;
+                        }
                         // The same techniques without the clamp: where the weights differ,
                         // min(p pi r^2, 1) was 1 somewhere.
                         let free = VcmWeights::new(power, radius, setup.n(), true, true);
-                        let (free_vc, free_vm) = vcm_weights(&free, gather, path, &q);
+                        let (free_vc, free_vm) = vcm_weights(&free, gather, path, &q, &[]);
                         let differs = |a: &[f32], b: &[f32]| {
                             a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-3)
                         };
@@ -613,9 +684,34 @@ fn check_scene(name: &str) -> (usize, usize) {
                     }
                 }
             }
+            // 002's heuristics with a random, fixed density: 1 / k per vertex in [1e-3, 1].
+            let mut rng = Rng::for_sample(q.k as u64, beta as u64, 0, Stream::Light);
+            let inv_k: Vec<f32> = (0..=q.k)
+                .map(|_| 10f32.powf(-3.0 * rng.next_f32()))
+                .collect();
+            for mode in [DensityMis::Plus, DensityMis::Star] {
+                for radius in [1e-3, 1e-2, 0.1] {
+                    let plain = VcmWeights::new(power, radius, setup.n(), true, true);
+                    let w = plain.with_density(mode);
+                    let (vc, vm) = vcm_weights(&w, Gather::Density, path, &q, &inv_k);
+                    let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
+                    assert!(
+                        (sum - 1.0).abs() < 1e-4,
+                        "{name}: {mode:?} weights of a {}-segment path sum to {sum} \
+                         (beta {beta}, r {radius}): VC {vc:?} VM {vm:?}",
+                        q.k
+                    );
+                    let (plain_vc, plain_vm) = vcm_weights(&plain, Gather::Density, path, &q, &[]);
+                    let differs =
+                        |a: &[f32], b: &[f32]| a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-3);
+                    if differs(&vc, &plain_vc) || differs(&vm, &plain_vm) {
+                        *reweighted.entry(mode.name()).or_insert(0) += 1;
+                    }
+                }
+            }
             // VC alone is BPT: the two recursions give the same weights.
             let w = VcmWeights::new(power, 0.01, setup.n(), true, false);
-            let (vc, _) = vcm_weights(&w, Gather::Density, path, &q);
+            let (vc, _) = vcm_weights(&w, Gather::Density, path, &q, &[]);
             for (s, (a, b)) in vc.iter().zip(&bpt).enumerate() {
                 assert!(
                     (a - b).abs() < 1e-4,
@@ -625,6 +721,16 @@ fn check_scene(name: &str) -> (usize, usize) {
         }
     }
     assert!(clamped > 0, "{name}: the clamp never bound");
+    for mode in [DensityMis::Plus, DensityMis::Star] {
+        assert!(
+            reweighted.get(mode.name()).copied().unwrap_or(0) > 0,
+            "{name}: {mode:?} never changed a weight"
+        );
+    }
+    assert!(
+        shared_merges > 0,
+        "{name}: no path had two merge-only UPG techniques"
+    );
     (specular, merged)
 }
 

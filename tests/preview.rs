@@ -347,7 +347,8 @@ fn serves_its_routes_only_and_stops_with_the_render() {
 /// lives on.
 #[test]
 fn the_preview_closes_its_port_when_dropped() {
-    use vmerge::render::{NewRender, Observer, RenderOptions, StopAfter, StopFlag};
+    use vmerge::options::RenderOptions;
+    use vmerge::render::{NewRender, Observer, StopAfter, StopFlag};
     let dir = tempfile::tempdir().unwrap();
     let setup = NewRender {
         scene: scene("cornell-box"),
@@ -362,6 +363,7 @@ fn the_preview_closes_its_port_when_dropped() {
         snapshot_every: None,
         reference: None,
         traces: Vec::new(),
+        memory_limit: None,
     };
     let scene = setup.load_scene().unwrap();
     let mut job = setup.job(&scene).unwrap();

@@ -2,8 +2,10 @@
 
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext, Technique};
-use vmerge::render::{render_iterations, RenderOptions};
+use vmerge::integrator::{self, RenderContext};
+use vmerge::options::RenderOptions;
+use vmerge::options::Technique;
+use vmerge::render::render_iterations;
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
 fn load(name: &str) -> Scene {
@@ -11,6 +13,7 @@ fn load(name: &str) -> Scene {
     let options = LoadOptions {
         accel: AccelKind::Bvh,
         lenient: false,
+        shading_normals: true,
     };
     match scene::load(path.as_ref(), &options) {
         Ok(scene) => scene,

@@ -3,10 +3,10 @@
 use std::path::{Path, PathBuf};
 use vmerge::color::Rgb;
 use vmerge::film::{exr as film_exr, ErrorSample, Film, Image, Metadata, TraceWindow};
-use vmerge::integrator::Technique;
-use vmerge::render::RenderOptions;
+use vmerge::options::RenderOptions;
+use vmerge::options::Technique;
 use vmerge::sampling::Rng;
-use vmerge::tools;
+use vmerge::tools::{self, Metric};
 
 const W: u32 = 12;
 const H: u32 = 8;
@@ -291,11 +291,18 @@ fn diff_errors_and_average_on_a_tiny_pair() {
     assert_eq!(mae, 8.5 / 6.0);
     assert_eq!(rmse, (38.25f64 / 6.0).sqrt());
     assert_eq!(tools::average(&a).unwrap(), [1.75, 1.5, 2.0]);
+    // d^2 / (b^2 + 0.01) per channel, over 6 channels.
+    let terms = [1.0 / 4.01, 1.0 / 0.01, 0.0, 0.25 / 1.01, 36.0 / 16.01, 0.0];
+    let expected = terms.iter().sum::<f64>() / 6.0;
+    let relative = tools::relative_mse(&a, &b).unwrap();
+    assert!((relative - expected).abs() < 1e-12 * expected, "{relative}");
+    assert_eq!(tools::relative_mse(&a, &a).unwrap(), 0.0);
 
     let wide = write_image(dir.path(), "wide.exr", 4, vec![Rgb::BLACK; 4]);
     for message in [
         tools::errors(&a, &wide).unwrap_err().to_string(),
         tools::diff(&out, &a, &wide).unwrap_err().to_string(),
+        tools::relative_mse(&a, &wide).unwrap_err().to_string(),
     ] {
         assert!(
             message.contains("wide.exr") && message.contains("a.exr") && message.contains("4x1"),
@@ -323,27 +330,34 @@ fn plot_draws_charts() {
     let a = write(dir.path(), "a.exr", &render(1, 20));
     let b = write(dir.path(), "b.exr", &render(2, 10));
     let out = dir.path().join("chart.png");
-    tools::plot(&out, &[a.clone(), b.clone()], false).unwrap();
+    tools::plot(&out, &[a.clone(), b.clone()], false, Metric::Rmse).unwrap();
     let (width, height, distinct) = colours(&out);
     // Two series in two colours, black axes and text on white, antialiased text.
     assert!(distinct > 2, "{distinct} colours");
     // With traces: the whole image and two windows, a 2 x 2 grid.
     let grid = dir.path().join("traces.png");
-    tools::plot(&grid, &[a.clone(), b.clone()], true).unwrap();
+    tools::plot(&grid, &[a.clone(), b.clone()], true, Metric::Rmse).unwrap();
     let (grid_width, grid_height, _) = colours(&grid);
     assert_eq!((grid_width, grid_height), (2 * width, 2 * height));
 
     let svg = dir.path().join("chart.svg");
-    tools::plot(&svg, &[a.clone(), b], false).unwrap();
+    tools::plot(&svg, &[a.clone(), b.clone()], false, Metric::Rmse).unwrap();
     let text = std::fs::read_to_string(&svg).unwrap();
     assert!(text.starts_with("<svg") && text.contains("vcm r=0.05 (a)"));
     assert!(text.contains("RMS error") && text.contains("<polyline"));
+    // The thesis's metric: the same chart of the mean absolute error, another polyline.
+    let mae = dir.path().join("mae.svg");
+    tools::plot(&mae, &[a.clone(), b], false, Metric::Mae).unwrap();
+    let mae_text = std::fs::read_to_string(&mae).unwrap();
+    assert!(mae_text.contains("mean absolute error") && !mae_text.contains("RMS error"));
+    let polyline = |t: &str| t.split("<polyline").nth(1).map(str::to_owned);
+    assert_ne!(polyline(&text), polyline(&mae_text));
 
     let plain = dir.path().join("plain.exr");
     let (film, mut m) = render(3, 2);
     m.errors.clear();
     film_exr::write_render(&plain, &film, &m).unwrap();
-    let message = tools::plot(&out, &[a, plain], false)
+    let message = tools::plot(&out, &[a, plain], false, Metric::Rmse)
         .unwrap_err()
         .to_string();
     assert!(message.contains("plain.exr") && message.contains("no error series"));

@@ -5,7 +5,7 @@
 mod common;
 
 use common::{assert_agree, floor_view, load, options, render_stats, standardised_rms};
-use vmerge::integrator::Technique;
+use vmerge::options::Technique;
 
 const UPG: [Technique; 2] = [Technique::Upg, Technique::UpgCamera];
 

@@ -606,3 +606,46 @@ fn unreachable_targets_and_invalid_inputs() {
         Err(AcceptanceError::PacketWidth(4))
     );
 }
+
+/// The bound depends on the shape of the lobes alone, never on the albedo that scales them: a
+/// textured lambert surface has the same bound, P and trial directions at every albedo, and so
+/// does Phong wherever kd and ks keep their ratio (the lobes' weights). Textures therefore need
+/// nothing of UPG: the albedo only scales the merge's value.
+#[test]
+fn the_bound_depends_on_the_lobe_shape_only() {
+    use vmerge::bsdf::{Albedo, Normals};
+    let target = Vec3::new(0.3, 0.1, 0.8);
+    let wo = spherical(35.0, 0.0).as_vec3();
+    let ns = Vec3::new(0.2, -0.1, 1.0).normalize();
+    let cases = [
+        (lambert(), [(0.05, 0.0), (0.5, 0.0), (0.95, 0.0)]),
+        (
+            phong(0.3, 0.2, 20.0),
+            [(0.06, 0.04), (0.3, 0.2), (0.54, 0.36)],
+        ),
+    ];
+    for (kind, albedos) in &cases {
+        for normals in [Normals::flat(Vec3::Z), Normals { ng: Vec3::Z, ns }] {
+            let trials = |(kd, ks): (f32, f32)| {
+                let albedo = Albedo {
+                    kd: Rgb::splat(kd),
+                    ks: Rgb::splat(ks),
+                };
+                let b = Bsdf::shaded(kind, albedo, normals, wo, TransportMode::Importance).unwrap();
+                let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, target, 0.05).unwrap();
+                let mut rng = Rng::for_sample(3, 0, 0, Stream::Light);
+                let dirs: Vec<Option<Vec3>> = (0..64)
+                    .map(|_| {
+                        bound.sample_direction([rng.next_f32(), rng.next_f32(), rng.next_f32()])
+                    })
+                    .collect();
+                (bound.p_bound(), dirs)
+            };
+            let first = trials(albedos[0]);
+            assert!(first.0 > 0.0 && first.0 < 1.0, "{kind:?}: P = {}", first.0);
+            for &a in &albedos[1..] {
+                assert_eq!(trials(a), first, "{kind:?} {normals:?}: albedo {a:?}");
+            }
+        }
+    }
+}

@@ -4,7 +4,7 @@
 mod common;
 
 use common::{assert_agree, floor_view, load, options, render_stats, PixelStats};
-use vmerge::integrator::Technique;
+use vmerge::options::Technique;
 
 /// Radiance 1 everywhere: within 1% (merging at a radius of 1.5% of the box's side is biased
 /// only in the thin bands along its edges), with a standard error below 0.2% so the test can

@@ -14,6 +14,7 @@ pub fn load_scene(name: &str, path: &Path, accel: AccelKind) -> Option<Scene> {
     let options = LoadOptions {
         accel,
         lenient: true,
+        shading_normals: true,
     };
     scene::load(path, &options)
         .map_err(|e| eprintln!("skipping {name}: {e}"))

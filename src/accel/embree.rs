@@ -3,7 +3,9 @@
 //! One device per scene with an error callback that records Embree's errors so they surface
 //! as [`AccelError`]s; the triangle soup as one triangle geometry over shared buffers, the
 //! spheres as one sphere-point geometry; MEDIUM build quality (shared/notes/embree.md: HIGH
-//! costs several times the build for ~13% faster traversal). Written against Embree 3's API.
+//! costs several times the build for ~13% faster traversal). Speaks Embree 3's and Embree 4's
+//! APIs (`cfg(embree3)` / `cfg(embree4)`, from the version embree-sys found): only the ray
+//! queries differ, in `query`; both versions are asked the same questions.
 
 use super::{sphere_roots, Accel, AccelError, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
 use embree_sys as sys;
@@ -63,6 +65,7 @@ impl EmbreeScene {
 
     /// Builds with an Embree device configuration string (e.g. `"threads=1,verbose=1"`).
     pub fn build_with_config(geometry: &Geometry, config: &str) -> Result<Self, AccelError> {
+        check_indices(geometry)?;
         let errors = Box::<ErrorLog>::default();
         let config = std::ffi::CString::new(config).map_err(|_| AccelError::Embree {
             code: 0,
@@ -108,6 +111,8 @@ impl EmbreeScene {
             triangle_geometry: sys::RTC_INVALID_GEOMETRY_ID,
             sphere_geometry: sys::RTC_INVALID_GEOMETRY_ID,
         };
+        this.check()?;
+        check_hit_layout(device)?;
         this.check()?;
         // SAFETY: `scene` is valid.
         unsafe {
@@ -205,19 +210,6 @@ impl EmbreeScene {
         }
     }
 
-    fn context(coherent: bool) -> sys::RTCIntersectContext {
-        // rtcInitIntersectContext is an inline header function, re-implemented here.
-        sys::RTCIntersectContext {
-            flags: if coherent {
-                sys::RTCIntersectContextFlags_RTC_INTERSECT_CONTEXT_FLAG_COHERENT
-            } else {
-                sys::RTCIntersectContextFlags_RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT
-            },
-            filter: None,
-            instID: [sys::RTC_INVALID_GEOMETRY_ID],
-        }
-    }
-
     /// The [`Hit`] of Embree's answer for `ray`. Inlined for the common triangle case, the
     /// sphere case kept out of line: this runs once per ray and lane.
     #[inline]
@@ -311,6 +303,277 @@ fn empty_hit() -> sys::RTCHit {
 #[repr(C, align(32))]
 struct ValidMask([i32; PACKET]);
 
+fn empty_hit8() -> sys::RTCHit8 {
+    sys::RTCHit8 {
+        geomID: [sys::RTC_INVALID_GEOMETRY_ID; PACKET],
+        instID: [[sys::RTC_INVALID_GEOMETRY_ID; PACKET]],
+        ..Default::default()
+    }
+}
+
+/// The ray queries in the API of the Embree found at build time. Both versions are asked for
+/// the same traversal: incoherent rays, no filter functions, no instancing.
+#[cfg(embree3)]
+mod query {
+    use super::{sys, ValidMask};
+
+    /// `rtcInitIntersectContext`, an inline header function, re-implemented.
+    #[inline]
+    fn context() -> sys::RTCIntersectContext {
+        sys::RTCIntersectContext {
+            flags: sys::RTCIntersectContextFlags_RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT,
+            filter: None,
+            instID: [sys::RTC_INVALID_GEOMETRY_ID],
+        }
+    }
+
+    /// # Safety
+    /// `scene` is a committed scene.
+    #[inline]
+    pub unsafe fn intersect1(scene: sys::RTCScene, rayhit: &mut sys::RTCRayHit) {
+        let mut context = context();
+        // SAFETY: the caller's scene is committed; context and rayhit live for the call.
+        unsafe { sys::rtcIntersect1(scene, &mut context, rayhit) }
+    }
+
+    /// # Safety
+    /// `scene` is a committed scene.
+    #[inline]
+    pub unsafe fn occluded1(scene: sys::RTCScene, ray: &mut sys::RTCRay) {
+        let mut context = context();
+        // SAFETY: as for `intersect1`.
+        unsafe { sys::rtcOccluded1(scene, &mut context, ray) }
+    }
+
+    /// # Safety
+    /// `scene` is a committed scene.
+    #[inline]
+    pub unsafe fn intersect8(
+        valid: &ValidMask,
+        scene: sys::RTCScene,
+        rayhit: &mut sys::RTCRayHit8,
+    ) {
+        let mut context = context();
+        // SAFETY: `valid` and `rayhit` are 32-byte aligned by their types' repr and live for the
+        // call; the caller's scene is committed.
+        unsafe { sys::rtcIntersect8(valid.0.as_ptr(), scene, &mut context, rayhit) }
+    }
+
+    /// # Safety
+    /// `scene` is a committed scene.
+    #[inline]
+    pub unsafe fn occluded8(valid: &ValidMask, scene: sys::RTCScene, ray: &mut sys::RTCRay8) {
+        let mut context = context();
+        // SAFETY: as for `intersect8`.
+        unsafe { sys::rtcOccluded8(valid.0.as_ptr(), scene, &mut context, ray) }
+    }
+}
+
+/// The ray queries in the API of the Embree found at build time. Both versions are asked for
+/// the same traversal: incoherent rays, no filter functions, no instancing.
+#[cfg(embree4)]
+mod query {
+    use super::{sys, ValidMask};
+    use std::ptr::null_mut;
+
+    /// The features vmerge's scenes have. The mask is for SYCL, which compiles traversal for the
+    /// features named only; naming exactly these keeps it right there too.
+    const FEATURES: sys::RTCFeatureFlags = sys::RTCFeatureFlags_RTC_FEATURE_FLAG_TRIANGLE
+        | sys::RTCFeatureFlags_RTC_FEATURE_FLAG_SPHERE_POINT;
+
+    // `rtcInitIntersectArguments` / `rtcInitOccludedArguments`, inline header functions,
+    // re-implemented with the feature mask narrowed. Their null ray query context makes Embree
+    // initialise its own (`rtcInitRayQueryContext`) with the layout the library was built
+    // with; nothing here needs the instance stack a context carries.
+
+    #[inline]
+    #[allow(
+        clippy::needless_update,
+        reason = "minWidthDistanceFactor exists where RTC_MIN_WIDTH is set"
+    )]
+    fn intersect_arguments() -> sys::RTCIntersectArguments {
+        sys::RTCIntersectArguments {
+            flags: sys::RTCRayQueryFlags_RTC_RAY_QUERY_FLAG_INCOHERENT,
+            feature_mask: FEATURES,
+            context: null_mut(),
+            filter: None,
+            intersect: None,
+            ..Default::default()
+        }
+    }
+
+    #[inline]
+    #[allow(
+        clippy::needless_update,
+        reason = "minWidthDistanceFactor exists where RTC_MIN_WIDTH is set"
+    )]
+    fn occluded_arguments() -> sys::RTCOccludedArguments {
+        sys::RTCOccludedArguments {
+            flags: sys::RTCRayQueryFlags_RTC_RAY_QUERY_FLAG_INCOHERENT,
+            feature_mask: FEATURES,
+            context: null_mut(),
+            filter: None,
+            occluded: None,
+            ..Default::default()
+        }
+    }
+
+    /// # Safety
+    /// `scene` is a committed scene.
+    #[inline]
+    pub unsafe fn intersect1(scene: sys::RTCScene, rayhit: &mut sys::RTCRayHit) {
+        let mut args = intersect_arguments();
+        // SAFETY: the caller's scene is committed; rayhit and args live for the call.
+        unsafe { sys::rtcIntersect1(scene, rayhit, &mut args) }
+    }
+
+    /// # Safety
+    /// `scene` is a committed scene.
+    #[inline]
+    pub unsafe fn occluded1(scene: sys::RTCScene, ray: &mut sys::RTCRay) {
+        let mut args = occluded_arguments();
+        // SAFETY: as for `intersect1`.
+        unsafe { sys::rtcOccluded1(scene, ray, &mut args) }
+    }
+
+    /// # Safety
+    /// `scene` is a committed scene.
+    #[inline]
+    pub unsafe fn intersect8(
+        valid: &ValidMask,
+        scene: sys::RTCScene,
+        rayhit: &mut sys::RTCRayHit8,
+    ) {
+        let mut args = intersect_arguments();
+        // SAFETY: `valid` and `rayhit` are 32-byte aligned by their types' repr and live for the
+        // call, as do the arguments; the caller's scene is committed.
+        unsafe { sys::rtcIntersect8(valid.0.as_ptr(), scene, rayhit, &mut args) }
+    }
+
+    /// # Safety
+    /// `scene` is a committed scene.
+    #[inline]
+    pub unsafe fn occluded8(valid: &ValidMask, scene: sys::RTCScene, ray: &mut sys::RTCRay8) {
+        let mut args = occluded_arguments();
+        // SAFETY: as for `intersect8`.
+        unsafe { sys::rtcOccluded8(valid.0.as_ptr(), scene, ray, &mut args) }
+    }
+}
+
+/// A query's answer with room after it, to see whether Embree writes past its end.
+#[repr(C)]
+struct WithSpare<T> {
+    answer: T,
+    spare: [u32; 32],
+}
+
+const UNTOUCHED: u32 = 0x5a5a_5a5a;
+
+/// Embree writes a hit's instance ids in as many levels as the library was built with, and
+/// Embree 4 also their primitive ids where built with instance arrays; a header configured
+/// otherwise (`rtcore_config.h`) makes `RTCHit` shorter than what Embree writes. One ray and
+/// one packet at a one-triangle scene, with spare words after their answers, tell.
+fn check_hit_layout(device: sys::RTCDevice) -> Result<(), AccelError> {
+    let vertices: [[f32; 4]; 3] = [[0.0; 4], [1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]];
+    let indices: [[u32; 3]; 1] = [[0, 1, 2]];
+    // SAFETY: `device` is valid; the buffers outlive the scene, released at the end of this
+    // function, and vertices are 16-byte items for Embree's 16-byte reads.
+    let scene = unsafe {
+        let scene = sys::rtcNewScene(device);
+        let mesh = sys::rtcNewGeometry(device, sys::RTCGeometryType_RTC_GEOMETRY_TYPE_TRIANGLE);
+        sys::rtcSetSharedGeometryBuffer(
+            mesh,
+            sys::RTCBufferType_RTC_BUFFER_TYPE_VERTEX,
+            0,
+            sys::RTCFormat_RTC_FORMAT_FLOAT3,
+            vertices.as_ptr().cast(),
+            0,
+            16,
+            vertices.len(),
+        );
+        sys::rtcSetSharedGeometryBuffer(
+            mesh,
+            sys::RTCBufferType_RTC_BUFFER_TYPE_INDEX,
+            0,
+            sys::RTCFormat_RTC_FORMAT_UINT3,
+            indices.as_ptr().cast(),
+            0,
+            12,
+            indices.len(),
+        );
+        sys::rtcCommitGeometry(mesh);
+        sys::rtcAttachGeometry(scene, mesh);
+        sys::rtcReleaseGeometry(mesh);
+        sys::rtcCommitScene(scene);
+        scene
+    };
+    let ray = Ray::new(Vec3::new(0.25, 0.25, -1.0), Vec3::Z);
+    let mut one = WithSpare {
+        answer: sys::RTCRayHit {
+            ray: rtc_ray(&ray),
+            hit: empty_hit(),
+        },
+        spare: [UNTOUCHED; 32],
+    };
+    let (valid, ray8) = packet_rays(&[ray; PACKET], 0xff);
+    let mut eight = WithSpare {
+        answer: sys::RTCRayHit8 {
+            ray: ray8,
+            hit: empty_hit8(),
+        },
+        spare: [UNTOUCHED; 32],
+    };
+    // SAFETY: the scene is committed (or empty after an error, which Embree answers with
+    // misses); it is released here and never used again. Anything Embree writes past an
+    // answer lands in its spare words.
+    unsafe {
+        query::intersect1(scene, &mut one.answer);
+        query::intersect8(&valid, scene, &mut eight.answer);
+        sys::rtcReleaseScene(scene);
+    }
+    let overrun = |spare: &[u32]| {
+        spare
+            .iter()
+            .rposition(|&w| w != UNTOUCHED)
+            .map_or(0, |i| 4 * (i + 1))
+    };
+    let (single, packet) = (overrun(&one.spare), overrun(&eight.spare));
+    let hits = one.answer.hit.geomID == 0 && eight.answer.hit.geomID.iter().all(|&g| g == 0);
+    if single == 0 && packet == 0 && hits {
+        return Ok(());
+    }
+    Err(AccelError::Embree {
+        code: 0,
+        message: format!(
+            "the Embree library does not match the header vmerge was built with: it wrote \
+             {single} bytes past RTCRayHit and {packet} past RTCRayHit8{}; rebuild against the \
+             library's own headers (rtcore_config.h: RTC_MAX_INSTANCE_LEVEL_COUNT, \
+             EMBREE_GEOMETRY_INSTANCE_ARRAY)",
+            if hits {
+                ""
+            } else {
+                ", and missed a triangle in front of the rays"
+            }
+        ),
+    })
+}
+
+/// Embree reads vertices through the indices unchecked: an index beyond the vertices given
+/// would be read out of bounds.
+fn check_indices(geometry: &Geometry) -> Result<(), AccelError> {
+    match geometry
+        .triangles
+        .iter()
+        .position(|t| t.iter().any(|&v| v as usize >= geometry.positions.len()))
+    {
+        Some(i) => Err(AccelError::InvalidGeometry(format!(
+            "triangle {i} indexes a vertex beyond the {} given",
+            geometry.positions.len()
+        ))),
+        None => Ok(()),
+    }
+}
+
 fn packet_rays(rays: &[Ray; PACKET], active: u8) -> (ValidMask, sys::RTCRay8) {
     let mut valid = ValidMask([0; PACKET]);
     let mut r = sys::RTCRay8 {
@@ -370,13 +633,12 @@ fn ensure_flush_denormals() {
 impl Accel for EmbreeScene {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         ensure_flush_denormals();
-        let mut context = Self::context(false);
         let mut rayhit = sys::RTCRayHit {
             ray: rtc_ray(ray),
             hit: empty_hit(),
         };
-        // SAFETY: the scene is committed; context and rayhit are valid for the call.
-        unsafe { sys::rtcIntersect1(self.scene, &mut context, &mut rayhit) };
+        // SAFETY: the scene is committed.
+        unsafe { query::intersect1(self.scene, &mut rayhit) };
         let h = &rayhit.hit;
         if h.geomID == sys::RTC_INVALID_GEOMETRY_ID {
             return None;
@@ -396,30 +658,22 @@ impl Accel for EmbreeScene {
 
     fn occluded(&self, ray: &Ray) -> bool {
         ensure_flush_denormals();
-        let mut context = Self::context(false);
         let mut r = rtc_ray(ray);
-        // SAFETY: as for rtcIntersect1.
-        unsafe { sys::rtcOccluded1(self.scene, &mut context, &mut r) };
+        // SAFETY: the scene is committed.
+        unsafe { query::occluded1(self.scene, &mut r) };
         // A hit sets tfar to -inf; a miss leaves it unchanged.
         r.tfar == f32::NEG_INFINITY
     }
 
     fn intersect8(&self, rays: &[Ray; PACKET], active: u8, hits: &mut [Option<Hit>; PACKET]) {
         ensure_flush_denormals();
-        let mut context = Self::context(false);
         let (valid, ray8) = packet_rays(rays, active);
-        let hit8 = sys::RTCHit8 {
-            geomID: [sys::RTC_INVALID_GEOMETRY_ID; PACKET],
-            instID: [[sys::RTC_INVALID_GEOMETRY_ID; PACKET]],
-            ..Default::default()
-        };
         let mut rayhit = sys::RTCRayHit8 {
             ray: ray8,
-            hit: hit8,
+            hit: empty_hit8(),
         };
-        // SAFETY: `valid` and `rayhit` are 32-byte aligned (RTCRayHit8 by bindgen's repr,
-        // ValidMask by ours) and live for the call; the scene is committed.
-        unsafe { sys::rtcIntersect8(valid.0.as_ptr(), self.scene, &mut context, &mut rayhit) };
+        // SAFETY: the scene is committed.
+        unsafe { query::intersect8(&valid, self.scene, &mut rayhit) };
         for (i, (ray, out)) in rays.iter().zip(hits.iter_mut()).enumerate() {
             let h = &rayhit.hit;
             *out = if active & (1 << i) != 0 && h.geomID[i] != sys::RTC_INVALID_GEOMETRY_ID {
@@ -442,10 +696,9 @@ impl Accel for EmbreeScene {
 
     fn occluded8(&self, rays: &[Ray; PACKET], active: u8) -> u8 {
         ensure_flush_denormals();
-        let mut context = Self::context(false);
         let (valid, mut ray8) = packet_rays(rays, active);
-        // SAFETY: as for rtcIntersect8.
-        unsafe { sys::rtcOccluded8(valid.0.as_ptr(), self.scene, &mut context, &mut ray8) };
+        // SAFETY: the scene is committed.
+        unsafe { query::occluded8(&valid, self.scene, &mut ray8) };
         (0..PACKET)
             .filter(|&i| active & (1 << i) != 0 && ray8.tfar[i] == f32::NEG_INFINITY)
             .fold(0u8, |mask, i| mask | (1 << i))
@@ -488,16 +741,7 @@ impl RawScene {
                 message: format!("{code:?}"),
             })
         };
-        if let Some(i) = geometry
-            .triangles
-            .iter()
-            .position(|t| t.iter().any(|&v| v as usize >= geometry.positions.len()))
-        {
-            return Err(AccelError::InvalidGeometry(format!(
-                "triangle {i} indexes a vertex beyond the {} given",
-                geometry.positions.len()
-            )));
-        }
+        check_indices(geometry)?;
         // SAFETY: a null configuration string asks for the defaults.
         let device = unsafe { sys::rtcNewDevice(std::ptr::null()) };
         if device.is_null() {
@@ -522,6 +766,7 @@ impl RawScene {
         if let Some(e) = embree_error(device) {
             return Err(e);
         }
+        check_hit_layout(device)?;
         // SAFETY: geometry 0 is the mesh attached above; Embree allocates each buffer with
         // `count * stride` bytes (plus its padding for 16-byte vertex reads), 4-byte aligned,
         // so it is valid as a slice of that many `[f32; 3]` / `[u32; 3]` until the scene is
@@ -564,15 +809,14 @@ impl RawScene {
     /// Closest hits of `rays` through `rtcIntersect1`; returns how many hit.
     pub fn intersect1(&self, rays: &[Ray]) -> u64 {
         ensure_flush_denormals();
-        let mut context = EmbreeScene::context(false);
         let mut hits = 0;
         for ray in rays {
             let mut rayhit = sys::RTCRayHit {
                 ray: rtc_ray(ray),
                 hit: empty_hit(),
             };
-            // SAFETY: the scene is committed; context and rayhit are valid for the call.
-            unsafe { sys::rtcIntersect1(self.scene, &mut context, &mut rayhit) };
+            // SAFETY: the scene is committed.
+            unsafe { query::intersect1(self.scene, &mut rayhit) };
             hits += (rayhit.hit.geomID != sys::RTC_INVALID_GEOMETRY_ID) as u64;
         }
         hits
@@ -581,12 +825,11 @@ impl RawScene {
     /// Occlusion of `rays` through `rtcOccluded1`; returns how many are occluded.
     pub fn occluded1(&self, rays: &[Ray]) -> u64 {
         ensure_flush_denormals();
-        let mut context = EmbreeScene::context(false);
         let mut occluded = 0;
         for ray in rays {
             let mut r = rtc_ray(ray);
-            // SAFETY: as for rtcIntersect1.
-            unsafe { sys::rtcOccluded1(self.scene, &mut context, &mut r) };
+            // SAFETY: the scene is committed.
+            unsafe { query::occluded1(self.scene, &mut r) };
             occluded += (r.tfar == f32::NEG_INFINITY) as u64;
         }
         occluded
@@ -596,7 +839,6 @@ impl RawScene {
     /// left out); returns how many hit.
     pub fn intersect8(&self, rays: &[Ray]) -> u64 {
         ensure_flush_denormals();
-        let mut context = EmbreeScene::context(false);
         let mut hits = 0;
         for chunk in rays.chunks_exact(PACKET) {
             let Ok(packet) = <&[Ray; PACKET]>::try_from(chunk) else {
@@ -605,15 +847,10 @@ impl RawScene {
             let (valid, ray) = packet_rays(packet, 0xff);
             let mut rayhit = sys::RTCRayHit8 {
                 ray,
-                hit: sys::RTCHit8 {
-                    geomID: [sys::RTC_INVALID_GEOMETRY_ID; PACKET],
-                    instID: [[sys::RTC_INVALID_GEOMETRY_ID; PACKET]],
-                    ..Default::default()
-                },
+                hit: empty_hit8(),
             };
-            // SAFETY: `valid` and `rayhit` are 32-byte aligned and live for the call; the
-            // scene is committed.
-            unsafe { sys::rtcIntersect8(valid.0.as_ptr(), self.scene, &mut context, &mut rayhit) };
+            // SAFETY: the scene is committed.
+            unsafe { query::intersect8(&valid, self.scene, &mut rayhit) };
             hits += rayhit
                 .hit
                 .geomID
@@ -627,15 +864,14 @@ impl RawScene {
     /// Occlusion of `rays`, 8 at a time through `rtcOccluded8`; returns how many are occluded.
     pub fn occluded8(&self, rays: &[Ray]) -> u64 {
         ensure_flush_denormals();
-        let mut context = EmbreeScene::context(false);
         let mut occluded = 0;
         for chunk in rays.chunks_exact(PACKET) {
             let Ok(packet) = <&[Ray; PACKET]>::try_from(chunk) else {
                 continue;
             };
             let (valid, mut ray) = packet_rays(packet, 0xff);
-            // SAFETY: as for rtcIntersect8.
-            unsafe { sys::rtcOccluded8(valid.0.as_ptr(), self.scene, &mut context, &mut ray) };
+            // SAFETY: the scene is committed.
+            unsafe { query::occluded8(&valid, self.scene, &mut ray) };
             occluded += ray.tfar.iter().filter(|&&t| t == f32::NEG_INFINITY).count() as u64;
         }
         occluded

@@ -4,6 +4,7 @@
 //! Geometry is one flat triangle soup plus a list of analytic spheres; a [`Hit`] names its
 //! [`Primitive`] by index into those lists, so the scene maps a hit to its material in O(1).
 
+use crate::options::OptionName;
 use glam::Vec3;
 use thiserror::Error;
 
@@ -105,7 +106,7 @@ pub struct Hit {
     /// from which its vertices are counter-clockwise), not of unit length; for a sphere the unit
     /// outward normal. Triangle normals are left as Embree returns them because many queries
     /// (tentative rays, for one) never read them, and normalising costs a tenth of a query on
-    /// small scenes; [`crate::scene::Scene::intersect`] normalises.
+    /// small scenes; the scene normalises them where it makes a surface point.
     pub ng: Vec3,
 }
 
@@ -197,7 +198,7 @@ pub trait Accel: Send + Sync {
 }
 
 /// The backends, chosen at run time.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum AccelKind {
     Embree,
     Bvh,
@@ -213,10 +214,19 @@ impl AccelKind {
         }
     }
 
+    pub const ALL: [AccelKind; 2] = [AccelKind::Embree, AccelKind::Bvh];
+
     pub fn name(self) -> &'static str {
         match self {
             AccelKind::Embree => "embree",
             AccelKind::Bvh => "bvh",
+        }
+    }
+
+    pub fn description(self) -> &'static str {
+        match self {
+            AccelKind::Embree => "the system Embree",
+            AccelKind::Bvh => "vmerge's own SAH BVH (pure Rust)",
         }
     }
 }
@@ -226,7 +236,8 @@ pub enum AccelError {
     #[error("Embree error {code}: {message}")]
     Embree { code: u32, message: String },
     #[error(
-        "this build has no Embree backend (built without the `embree` feature); use --accel bvh"
+        "this build has no Embree backend (built without the `embree` feature); use {} bvh",
+        OptionName("accel")
     )]
     EmbreeNotBuilt,
     #[error("invalid geometry: {0}")]

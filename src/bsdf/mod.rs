@@ -14,7 +14,21 @@
 //!   [`TransportMode::Importance`] on light sub-paths. Only refraction differs: radiance is
 //!   scaled by 1/eta^2 across the interface, importance is not.
 //! - Lambert and Phong are two-sided (the frame flips to the side of `wo`); glass uses the
-//!   geometric normal's orientation (outward) to tell entering from leaving.
+//!   normal's orientation (outward) to tell entering from leaving.
+//! - Shading normals (Veach's thesis sec. 5.3): lobes are evaluated and sampled in the frame of
+//!   the shading normal `ns`, while callers keep multiplying by the geometric `|cos(ng, wi)|`
+//!   ([`Bsdf::cos_theta`]) and convert pdfs between solid angle and area with geometric cosines.
+//!   So `f` carries the factor that makes this right: |wi.ns| / |wi.ng| for radiance (`wi` points
+//!   to the light), |wo.ns| / |wo.ng| for importance (`wo` points to the light). Both are the one
+//!   function of the two directions f(l, c) |l.ns| / |l.ng|, `l` towards the light, so every
+//!   technique evaluates the same path integrand; for importance the factor is Veach's adjoint
+//!   correction |wo.ng| |wi.ns| / (|wo.ns| |wi.ng|) relative to using the shading cosine.
+//!   The pdfs are those of the shading-frame lobes, the same in both modes, so forward and
+//!   reverse pdfs of the two sides of a vertex still match.
+//! - Light leaks where `ns` and `ng` disagree are treated as pbrt-v4 treats them: not at all
+//!   in the BSDF. Reflection and transmission are told apart by the shading hemisphere alone
+//!   (no test against the geometric normal, which pbrt-v3 had), and a new ray's origin is
+//!   offset along `ng` to the side its direction goes (`Ray::spawn`).
 
 use crate::color::Rgb;
 use crate::frame::Frame;
@@ -139,12 +153,63 @@ impl Lobes {
     }
 }
 
+/// The albedos of a material at one surface point: the material's own colours, or what its
+/// textures give there.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Albedo {
+    /// Lambert's and Phong's kd (unused by mirror and glass).
+    pub kd: Rgb,
+    /// Phong's ks, the mirror's reflectance (unused by lambert and glass).
+    pub ks: Rgb,
+}
+
+impl Albedo {
+    /// The constant colours of `kind`.
+    pub fn of(kind: &MaterialKind) -> Self {
+        match *kind {
+            MaterialKind::Lambert { kd } => Albedo { kd, ks: Rgb::BLACK },
+            MaterialKind::Phong { kd, ks, .. } => Albedo { kd, ks },
+            MaterialKind::Mirror { ks } => Albedo { kd: Rgb::BLACK, ks },
+            MaterialKind::Glass { .. } => Albedo {
+                kd: Rgb::BLACK,
+                ks: Rgb::BLACK,
+            },
+        }
+    }
+}
+
+/// The geometry a BSDF sits on: unit geometric normal `ng` and unit shading normal `ns`, on the
+/// same side of the surface. `ns == ng` (bit for bit) is a flat surface, evaluated exactly as
+/// without shading normals.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Normals {
+    pub ng: Vec3,
+    pub ns: Vec3,
+}
+
+impl Normals {
+    pub fn flat(ng: Vec3) -> Self {
+        Normals { ng, ns: ng }
+    }
+}
+
+/// Smallest |cos| to the geometric normal that the shading-normal factor divides by; below it
+/// the factor is clamped, identically for every technique, so f stays finite.
+const MIN_GEOMETRIC_COS: f32 = 1e-6;
+
 /// A BSDF at one vertex, for one fixed `wo`.
 #[derive(Clone, Debug)]
 pub struct Bsdf<'a> {
     kind: &'a MaterialKind,
-    /// Local frame around the geometric normal (Lambert/Phong: flipped to the side of `wo`).
+    albedo: Albedo,
+    /// Local frame around the shading normal (Lambert/Phong: flipped to the side of `wo`).
     frame: Frame,
+    /// The unit geometric normal, for [`Bsdf::cos_theta`].
+    ng: Vec3,
+    /// The shading normal differs from the geometric one: `f` carries the factor of the module
+    /// doc, for importance the constant `importance_factor` = |wo.ns| / |wo.ng|.
+    smooth: bool,
+    importance_factor: f32,
     wo_local: Vec3,
     mode: TransportMode,
 }
@@ -153,47 +218,96 @@ impl<'a> Bsdf<'a> {
     /// The BSDF of `kind` at a vertex with unit geometric normal `ng`, seen from unit `wo`.
     /// `None` when `wo` lies (numerically) in the surface plane, where nothing is defined.
     pub fn new(kind: &'a MaterialKind, ng: Vec3, wo: Vec3, mode: TransportMode) -> Option<Self> {
+        Bsdf::shaded(kind, Albedo::of(kind), Normals::flat(ng), wo, mode)
+    }
+
+    /// The BSDF of `kind` with the albedos `albedo` (from its textures) on a surface with
+    /// `normals`. `None` when `wo` lies (numerically) in the geometric or the shading plane.
+    pub fn shaded(
+        kind: &'a MaterialKind,
+        albedo: Albedo,
+        normals: Normals,
+        wo: Vec3,
+        mode: TransportMode,
+    ) -> Option<Self> {
+        let Normals { ng, ns } = normals;
         let cos_o = ng.dot(wo);
         if cos_o.abs() < 1e-6 {
             return None;
         }
+        let smooth = ns != ng;
+        let cos_so = if smooth { ns.dot(wo) } else { cos_o };
+        if cos_so.abs() < 1e-6 {
+            return None;
+        }
         let two_sided = !matches!(kind, MaterialKind::Glass { .. });
-        let z = if two_sided && cos_o < 0.0 { -ng } else { ng };
+        let z = if two_sided && cos_so < 0.0 { -ns } else { ns };
         let frame = Frame::from_z(z);
         Some(Bsdf {
             kind,
+            albedo,
             frame,
+            ng,
+            smooth,
+            importance_factor: if smooth {
+                cos_so.abs() / cos_o.abs()
+            } else {
+                1.0
+            },
             wo_local: frame.to_local(wo),
             mode,
         })
     }
 
+    /// What `f` is multiplied by on a smooth surface for the direction `wi` (local `wi_local`).
+    fn shading_factor(&self, wi: Vec3, wi_local: Vec3) -> f32 {
+        match self.mode {
+            TransportMode::Radiance => {
+                wi_local.z.abs() / self.ng.dot(wi).abs().max(MIN_GEOMETRIC_COS)
+            }
+            TransportMode::Importance => self.importance_factor,
+        }
+    }
+
     /// Value and pdfs for `wi` (unit), non-delta lobes only.
     pub fn eval(&self, wi: Vec3) -> BsdfEval {
-        let wi = self.frame.to_local(wi);
-        match *self.kind {
-            MaterialKind::Lambert { kd } => lambert::eval(kd, self.wo_local, wi),
-            MaterialKind::Phong { kd, ks, exponent } => {
-                phong::Phong::new(kd, ks, exponent).eval(self.wo_local, wi)
+        let local = self.frame.to_local(wi);
+        let Albedo { kd, ks } = self.albedo;
+        let e = match *self.kind {
+            MaterialKind::Lambert { .. } => lambert::eval(kd, self.wo_local, local),
+            MaterialKind::Phong { exponent, .. } => {
+                phong::Phong::new(kd, ks, exponent).eval(self.wo_local, local)
             }
             MaterialKind::Mirror { .. } | MaterialKind::Glass { .. } => BsdfEval::ZERO,
+        };
+        if self.smooth {
+            BsdfEval {
+                f: e.f * self.shading_factor(wi, local),
+                ..e
+            }
+        } else {
+            e
         }
     }
 
     /// Samples `wi` with the random numbers `u` (`u[0]` picks the lobe).
     pub fn sample(&self, u: [f32; 3]) -> Option<BsdfSample> {
+        let Albedo { kd, ks } = self.albedo;
         let local = match *self.kind {
-            MaterialKind::Lambert { kd } => lambert::sample(kd, self.wo_local, [u[1], u[2]]),
-            MaterialKind::Phong { kd, ks, exponent } => {
+            MaterialKind::Lambert { .. } => lambert::sample(kd, self.wo_local, [u[1], u[2]]),
+            MaterialKind::Phong { exponent, .. } => {
                 phong::Phong::new(kd, ks, exponent).sample(self.wo_local, u)
             }
-            MaterialKind::Mirror { ks } => mirror::sample(ks, self.wo_local),
+            MaterialKind::Mirror { .. } => mirror::sample(ks, self.wo_local),
             MaterialKind::Glass { ior } => glass::sample(ior, self.wo_local, self.mode, u[0]),
         }?;
-        Some(BsdfSample {
-            wi: self.frame.to_world(local.wi),
-            ..local
-        })
+        let wi = self.frame.to_world(local.wi);
+        let f = if self.smooth {
+            local.f * self.shading_factor(wi, local.wi)
+        } else {
+            local.f
+        };
+        Some(BsdfSample { wi, f, ..local })
     }
 
     /// The sampling mixture of a non-delta BSDF: [`Bsdf::sample`] picks a component by its
@@ -216,7 +330,8 @@ impl<'a> Bsdf<'a> {
         };
         match *self.kind {
             MaterialKind::Lambert { .. } => lobes.push(diffuse(1.0)),
-            MaterialKind::Phong { kd, ks, exponent } => {
+            MaterialKind::Phong { exponent, .. } => {
+                let Albedo { kd, ks } = self.albedo;
                 let pd = phong::Phong::new(kd, ks, exponent).diffuse_probability;
                 if pd > 0.0 {
                     lobes.push(diffuse(pd));
@@ -241,29 +356,41 @@ impl<'a> Bsdf<'a> {
 
     /// `|cos|` between the geometric normal and `w`.
     pub fn cos_theta(&self, w: Vec3) -> f32 {
-        self.frame.z.dot(w).abs()
+        if self.smooth {
+            self.ng.dot(w).abs()
+        } else {
+            self.frame.z.dot(w).abs()
+        }
     }
 
     /// Probability of continuing the path at this vertex under Russian roulette: the
-    /// material's largest albedo channel, capped at 1.
+    /// largest albedo channel at this point, capped at 1.
     pub fn continuation_probability(&self) -> f32 {
+        let Albedo { kd, ks } = self.albedo;
         let albedo = match *self.kind {
-            MaterialKind::Lambert { kd } => kd,
-            MaterialKind::Phong { kd, ks, .. } => kd + ks,
-            MaterialKind::Mirror { ks } => ks,
+            MaterialKind::Lambert { .. } => kd,
+            MaterialKind::Phong { .. } => kd + ks,
+            MaterialKind::Mirror { .. } => ks,
             MaterialKind::Glass { .. } => Rgb::WHITE,
         };
         albedo.max_component().min(1.0)
     }
 
+    /// The material's kind, with its constant colours (the albedos here may come from
+    /// textures).
     pub fn kind(&self) -> &MaterialKind {
         self.kind
     }
 
-    /// The shading frame: `z` is the geometric normal, on the side of `wo` for two-sided
-    /// materials.
+    /// The shading frame: `z` is the shading normal (the geometric one on flat surfaces), on
+    /// the side of `wo` for two-sided materials.
     pub fn frame(&self) -> &Frame {
         &self.frame
+    }
+
+    /// The shading normal differs from the geometric one here.
+    pub fn is_smooth(&self) -> bool {
+        self.smooth
     }
 
     pub fn mode(&self) -> TransportMode {

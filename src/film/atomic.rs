@@ -3,7 +3,7 @@
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Writes `path` by calling `write` on a temporary file in the same directory
@@ -49,9 +49,63 @@ pub fn atomic_write(
     result
 }
 
+/// Removes the temporary files that writes of `path` by processes no longer running left
+/// behind (a render killed while writing a snapshot); returns those removed. Temporaries of
+/// running processes are theirs and stay; where process ids cannot be checked, nothing is
+/// removed.
+pub fn remove_stale_temporaries(path: &Path) -> Vec<PathBuf> {
+    let mut removed = Vec::new();
+    if !Path::new("/proc/self").exists() {
+        return removed;
+    }
+    let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
+        return removed;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!(".{}.tmp-", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return removed;
+    };
+    for entry in entries.flatten() {
+        let file_name = entry.file_name().to_string_lossy().into_owned();
+        let Some(rest) = file_name.strip_prefix(&prefix) else {
+            continue;
+        };
+        let Some(pid) = rest.split('-').next().and_then(|p| p.parse::<u32>().ok()) else {
+            continue;
+        };
+        let running = pid == std::process::id() || Path::new(&format!("/proc/{pid}")).exists();
+        if !running && std::fs::remove_file(entry.path()).is_ok() {
+            removed.push(entry.path());
+        }
+    }
+    removed
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn stale_temporaries_of_dead_processes_are_removed() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.exr");
+        // Process ids above the kernel's maximum (4194304) never run.
+        let dead = dir.path().join(".out.exr.tmp-4294967295-0");
+        let mine = dir
+            .path()
+            .join(format!(".out.exr.tmp-{}-7", std::process::id()));
+        let other = dir.path().join(".other.exr.tmp-4294967295-0");
+        for f in [&dead, &mine, &other] {
+            std::fs::write(f, "x").unwrap();
+        }
+        assert_eq!(remove_stale_temporaries(&path), vec![dead.clone()]);
+        assert!(!dead.exists() && mine.exists() && other.exists());
+    }
 
     #[test]
     fn replaces_the_target_and_leaves_no_temporary() {

@@ -148,12 +148,36 @@ fn write_channels(
 
 type AnyImage = exr::image::Image<Layer<AnyChannels<FlatSamples>>>;
 
+/// The most pixels an EXR read may have (a 32768 x 32768 image): a forged header must not
+/// make the reader allocate without bound.
+const MAX_READ_PIXELS: usize = 1 << 30;
+
 fn read_any(path: &Path) -> Result<AnyImage, FilmError> {
+    let unreadable = |message: String| FilmError::Read {
+        file: path.into(),
+        message,
+    };
     if !path.exists() {
-        return Err(FilmError::Read {
-            file: path.into(),
-            message: "no such file (missing)".into(),
-        });
+        return Err(unreadable("no such file (missing)".into()));
+    }
+    let bytes =
+        crate::files::read(path, crate::files::Kind::Exr).map_err(|e| unreadable(e.message))?;
+    let meta = exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(&bytes), false)
+        .map_err(|e| unreadable(format!("not a readable EXR: {e}")))?;
+    for header in &meta.headers {
+        let size = header.layer_size;
+        let samples = size
+            .width()
+            .checked_mul(size.height())
+            .and_then(|area| area.checked_mul(header.channels.list.len()));
+        if samples.is_none_or(|n| n > MAX_READ_PIXELS * 9) || size.area() > MAX_READ_PIXELS {
+            return Err(unreadable(format!(
+                "its header claims {}x{} pixels of {} channels, more than vmerge reads",
+                size.width(),
+                size.height(),
+                header.channels.list.len()
+            )));
+        }
     }
     read()
         .no_deep_data()
@@ -161,11 +185,8 @@ fn read_any(path: &Path) -> Result<AnyImage, FilmError> {
         .all_channels()
         .first_valid_layer()
         .all_attributes()
-        .from_file(path)
-        .map_err(|e| FilmError::Read {
-            file: path.into(),
-            message: format!("not a readable EXR: {e}"),
-        })
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| unreadable(format!("not a readable EXR: {e}")))
 }
 
 /// The channel `name` if it has one sample per pixel; subsampled channels (chroma in
@@ -292,9 +313,10 @@ pub fn read_render(path: &Path) -> Result<(Film, Metadata), FilmError> {
             }
         }
     }
-    let sum = (0..size.area())
+    let sum: Vec<[f64; 3]> = (0..size.area())
         .map(|i| [sums[0][i], sums[1][i], sums[2][i]])
         .collect();
+    check_sums(path, &sum, size.width(), &metadata)?;
     let film = Film {
         width: size.width() as u32,
         height: size.height() as u32,
@@ -302,6 +324,41 @@ pub fn read_render(path: &Path) -> Result<(Film, Metadata), FilmError> {
         iterations: metadata.iterations,
     };
     Ok((film, metadata))
+}
+
+/// A render's sums must be finite (samples that are not never reach the film, so a file with
+/// such sums was altered), all zero when it records no iteration, and its recorded options must
+/// pass the checks `render` applies to the command line.
+fn check_sums(
+    path: &Path,
+    sum: &[[f64; 3]],
+    width: usize,
+    metadata: &Metadata,
+) -> Result<(), FilmError> {
+    let invalid = |message: String| FilmError::Invalid {
+        file: path.into(),
+        message,
+    };
+    metadata.validate().map_err(|e| invalid(e.to_string()))?;
+    for (i, s) in sum.iter().enumerate() {
+        for (c, value) in s.iter().enumerate() {
+            let (x, y) = (i % width.max(1), i / width.max(1));
+            if !value.is_finite() {
+                return Err(invalid(format!(
+                    "the channel {} has {value} at pixel ({x}, {y}): an altered or damaged file",
+                    SUM_CHANNELS[c][0].trim_end_matches(".hi")
+                )));
+            }
+            if metadata.iterations == 0 && *value != 0.0 {
+                return Err(invalid(format!(
+                    "{} records 0 iterations but {} has {value} at pixel ({x}, {y})",
+                    super::metadata::attribute::ITERATIONS,
+                    SUM_CHANNELS[c][0].trim_end_matches(".hi")
+                )));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// EXR text is Latin-1; anything else (a non-ASCII path) is escaped as `\u{...}`, and so is

@@ -6,8 +6,7 @@
 //! so any EXR header dump shows them one by one. Numbers are decimal text; floats are written in
 //! Rust's shortest form that parses back to the same bits, so a file round-trips exactly.
 
-use crate::integrator::Technique;
-use crate::render::RenderOptions;
+use crate::options::{RenderOptions, Technique};
 use std::fmt;
 use thiserror::Error;
 
@@ -220,6 +219,31 @@ impl Metadata {
             out.push((ERRORS, self.errors_text()));
         }
         Ok(out)
+    }
+
+    /// The checks `render` applies to its command line, for a render read back: the options
+    /// against [`RenderOptions::validate`], the iterations within
+    /// [`MAX_ITERATIONS`](crate::options::MAX_ITERATIONS), a finite non-negative time.
+    pub fn validate(&self) -> Result<(), MetadataError> {
+        use attribute::*;
+        self.options.validate().map_err(|e| invalid(OPTIONS, e))?;
+        if self.iterations > crate::options::MAX_ITERATIONS {
+            return Err(invalid(
+                ITERATIONS,
+                format!(
+                    "{} is more than the {} a render may have",
+                    self.iterations,
+                    crate::options::MAX_ITERATIONS
+                ),
+            ));
+        }
+        if !(self.render_seconds.is_finite() && self.render_seconds >= 0.0) {
+            return Err(invalid(
+                RENDER_SECONDS,
+                format!("{} is not a finite time >= 0", self.render_seconds),
+            ));
+        }
+        Ok(())
     }
 
     fn errors_text(&self) -> String {

@@ -9,7 +9,7 @@ pub mod metadata;
 pub mod png;
 mod reference;
 
-pub use atomic::atomic_write;
+pub use atomic::{atomic_write, remove_stale_temporaries};
 pub use exr::{FilmError, Image};
 pub use metadata::{ErrorSample, Metadata, MetadataError, TraceWindow};
 pub use reference::{errors_in, ErrorTracker};

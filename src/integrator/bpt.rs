@@ -18,12 +18,12 @@ use super::connection::{Connection, LightSample};
 use super::mis::{self, BptStep, BptVertex, Power};
 use super::{Integrator, IterationStats, RenderContext};
 use crate::accel::Ray;
-use crate::bsdf::{Bsdf, TransportMode};
+use crate::bsdf::{Bsdf, Normals, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::sampling::{Rng, Stream};
 use crate::scene::{Scene, SurfaceHit};
-use glam::Vec3;
+use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
 /// Pixels traced by one parallel task. Fixed, so results do not depend on threads.
@@ -41,6 +41,9 @@ struct Chunk {
 struct LightVertex {
     position: Vec3,
     ng: Vec3,
+    /// Shading normal and texture coordinates, for the BSDF there.
+    ns: Vec3,
+    uv: Vec2,
     /// Unit direction back towards the previous vertex.
     wo: Vec3,
     throughput: Rgb,
@@ -108,11 +111,13 @@ impl SubPath {
 struct Filter {
     strategy: Option<(u32, u32)>,
     unweighted: bool,
+    /// Paths of fewer segments (s + t - 1) are left out.
+    min_length: u32,
 }
 
 impl Filter {
     fn allows(&self, s: u32, t: u32) -> bool {
-        self.strategy.is_none_or(|st| st == (s, t))
+        self.strategy.is_none_or(|st| st == (s, t)) && s + t > self.min_length
     }
 
     /// The light sub-path can be skipped when the one strategy shown does not use it.
@@ -144,6 +149,7 @@ impl<'a> Bpt<'a> {
             filter: Filter {
                 strategy: o.strategy.map(|[s, t]| (s, t)),
                 unweighted: o.unweighted,
+                min_length: o.min_path_length,
             },
             light_paths: ctx.camera.pixel_count() as f32,
             ctx,
@@ -236,14 +242,15 @@ impl<'a> Bpt<'a> {
             };
             state.arrive(self.power, Some(&hit));
             let wo = -state.ray.dir.normalize();
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, wo, TransportMode::Importance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, wo, TransportMode::Importance) else {
                 break;
             };
             if !bsdf.is_delta() {
                 let vertex = LightVertex {
                     position: hit.position,
                     ng: hit.ng,
+                    ns: hit.ns,
+                    uv: hit.uv,
                     wo,
                     throughput: state.throughput,
                     material: hit.material,
@@ -343,20 +350,9 @@ impl<'a> Bpt<'a> {
         let Some(ls) = sample.filter(|_| self.filter.allows(1, state.index + 1)) else {
             return Rgb::BLACK;
         };
-        let weight = self.filter.weight(|| {
-            mis::bpt_light_sample(
-                self.power,
-                &state.mis,
-                ls.eval.pdf_w,
-                ls.eval.rev_pdf_w,
-                ls.pdf_w(),
-                ls.il.direct_pdf_w,
-                ls.il.emission_pdf_w,
-                ls.cos_at_receiver,
-                ls.il.cos_at_light,
-                ls.light.is_delta(),
-            )
-        });
+        let weight = self
+            .filter
+            .weight(|| mis::bpt_light_sample(self.power, &state.mis, &ls.pdfs()));
         stats.rays += 1;
         if !ls.visible(self.scene(), hit) {
             return Rgb::BLACK;
@@ -373,24 +369,25 @@ impl<'a> Bpt<'a> {
         lv: &LightVertex,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let material = &self.scene().material(lv.material).kind;
-        let Some(light_bsdf) = Bsdf::new(material, lv.ng, lv.wo, TransportMode::Importance) else {
+        let normals = Normals {
+            ng: lv.ng,
+            ns: lv.ns,
+        };
+        let Some(light_bsdf) = self.scene().bsdf(
+            lv.material,
+            normals,
+            lv.uv,
+            lv.wo,
+            TransportMode::Importance,
+        ) else {
             return Rgb::BLACK;
         };
         let Some(c) = Connection::new(bsdf, hit.position, &light_bsdf, lv.position) else {
             return Rgb::BLACK;
         };
-        let weight = self.filter.weight(|| {
-            mis::bpt_connect(
-                self.power,
-                &lv.mis,
-                &state.mis,
-                c.to_eval.rev_pdf_w,
-                c.from_eval.rev_pdf_w,
-                c.to_pdf_a(),
-                c.from_pdf_a(),
-            )
-        });
+        let weight = self
+            .filter
+            .weight(|| mis::bpt_connect(self.power, &lv.mis, &state.mis, &c.eye_to_light_pdfs()));
         stats.rays += 1;
         if self.scene().occluded(&Ray::spawn_between(
             hit.position,
@@ -444,8 +441,7 @@ impl<'a> Bpt<'a> {
                 break;
             }
             let wo = -state.ray.dir.normalize();
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, wo, TransportMode::Radiance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, wo, TransportMode::Radiance) else {
                 break;
             };
             if !bsdf.is_delta() {

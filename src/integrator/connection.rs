@@ -1,6 +1,7 @@
 //! What the integrators compute alike around their MIS weights: a light point sampled for a
 //! surface point (next-event estimation), and the deterministic connection of two vertices.
 
+use super::mis::{ConnectionPdfs, LightSamplePdfs};
 use crate::bsdf::{Bsdf, BsdfEval};
 use crate::color::Rgb;
 use crate::light::{Illumination, Light};
@@ -44,6 +45,20 @@ impl<'s> LightSample<'s> {
     /// Pick probability times the light point's solid-angle pdf at the receiver.
     pub fn pdf_w(&self) -> f32 {
         self.pick * self.il.direct_pdf_w
+    }
+
+    /// The pdfs the MIS weights of light sampling need.
+    pub fn pdfs(&self) -> LightSamplePdfs {
+        LightSamplePdfs {
+            bsdf_pdf_w: self.eval.pdf_w,
+            bsdf_rev_pdf_w: self.eval.rev_pdf_w,
+            light_pdf_w: self.pdf_w(),
+            direct_pdf_w: self.il.direct_pdf_w,
+            emission_pdf_w: self.il.emission_pdf_w,
+            cos_at_receiver: self.cos_at_receiver,
+            cos_at_light: self.il.cos_at_light,
+            delta_light: self.light.is_delta(),
+        }
     }
 
     /// Whether nothing lies between the receiver and the light point.
@@ -106,5 +121,16 @@ impl Connection {
     /// Area pdf of the first vertex when the second samples it.
     pub fn from_pdf_a(&self) -> f32 {
         self.to_eval.pdf_w * self.cos_from / (self.distance * self.distance)
+    }
+
+    /// The pdfs the MIS weights need, for a connection made from an eye vertex (the first) to
+    /// a light vertex (the second).
+    pub fn eye_to_light_pdfs(&self) -> ConnectionPdfs {
+        ConnectionPdfs {
+            light_rev_pdf_w: self.to_eval.rev_pdf_w,
+            eye_rev_pdf_w: self.from_eval.rev_pdf_w,
+            light_pdf_a: self.to_pdf_a(),
+            eye_pdf_a: self.from_pdf_a(),
+        }
     }
 }

@@ -14,6 +14,7 @@
 //! Russian roulette stays out of the pdfs: every technique evaluates the same pdfs, so the
 //! weights still sum to one.
 
+use crate::options::DensityMis;
 use crate::sampling::mis_power;
 
 /// The MIS power beta (1 = balance heuristic, 2 = power heuristic).
@@ -119,54 +120,64 @@ pub fn bpt_hit_light(power: Power, eye: &BptVertex, direct_pdf_a: f32, emission_
     )
 }
 
-/// The BPT weight of light sampling (s = 1) at eye vertex `eye`: `bsdf_pdf_w` and
-/// `bsdf_rev_pdf_w` are the eye BSDF's pdfs towards the light and back; `light_pdf_w` the pick
-/// probability times the light point's solid-angle pdf at the receiver; `direct_pdf_w`,
-/// `emission_pdf_w` and `cos_at_light` the light's, without the pick; `cos_at_eye` the cosine at
-/// the receiver.
-#[allow(clippy::too_many_arguments)]
-pub fn bpt_light_sample(
-    power: Power,
-    eye: &BptVertex,
-    bsdf_pdf_w: f32,
-    bsdf_rev_pdf_w: f32,
-    light_pdf_w: f32,
-    direct_pdf_w: f32,
-    emission_pdf_w: f32,
-    cos_at_eye: f32,
-    cos_at_light: f32,
-    delta_light: bool,
-) -> f32 {
+/// The pdfs of light sampling (s = 1) at an eye vertex, as both weight schemes need them.
+#[derive(Clone, Copy, Debug)]
+pub struct LightSamplePdfs {
+    /// The eye vertex's BSDF towards the light point, and back along the eye sub-path.
+    pub bsdf_pdf_w: f32,
+    pub bsdf_rev_pdf_w: f32,
+    /// The pick probability times the light point's solid-angle pdf at the receiver.
+    pub light_pdf_w: f32,
+    /// The light's own pdfs of the point (per solid angle at the receiver) and of emitting
+    /// towards the receiver, without the pick.
+    pub direct_pdf_w: f32,
+    pub emission_pdf_w: f32,
+    /// |cos| at the receiver and at the light point (1 for infinite lights).
+    pub cos_at_receiver: f32,
+    pub cos_at_light: f32,
+    pub delta_light: bool,
+}
+
+impl LightSamplePdfs {
+    /// The area pdf with which the light, emitting from its point, samples the eye vertex,
+    /// relative to the light point's own: what the eye side's ratio sums multiply.
+    fn eye_rev_pdf_a(&self) -> f32 {
+        self.emission_pdf_w * self.cos_at_receiver / (self.direct_pdf_w * self.cos_at_light)
+    }
+}
+
+/// The BPT weight of light sampling (s = 1) at eye vertex `eye`.
+pub fn bpt_light_sample(power: Power, eye: &BptVertex, p: &LightSamplePdfs) -> f32 {
     // a_0 mis(p_rev(y_0)) with a_0 = 1 / (pick pdf_a) and p_rev(y_0) = bsdf_pdf_w cos_light / d^2:
     // in solid angle at the receiver, the ratio of the two pdfs of choosing the light point.
-    let light_side = if delta_light {
+    let light_side = if p.delta_light {
         0.0
     } else {
-        power.mis(bsdf_pdf_w / light_pdf_w)
+        power.mis(p.bsdf_pdf_w / p.light_pdf_w)
     };
     // The light samples the eye vertex by leaving its point with the emission's direction pdf.
-    let eye_rev_pdf_a = emission_pdf_w * cos_at_eye / (direct_pdf_w * cos_at_light);
     bpt_weight(
         light_side,
-        eye.ratio_sum(power, bsdf_rev_pdf_w, eye_rev_pdf_a),
+        eye.ratio_sum(power, p.bsdf_rev_pdf_w, p.eye_rev_pdf_a()),
     )
 }
 
-/// The BPT weight of a connection between light vertex `light` and eye vertex `eye`
-/// (s, t >= 2): each side's reverse pdf given the connection, and the area pdf with which the
-/// other side samples it.
-pub fn bpt_connect(
-    power: Power,
-    light: &BptVertex,
-    eye: &BptVertex,
-    light_rev_pdf_w: f32,
-    eye_rev_pdf_w: f32,
-    light_rev_pdf_a: f32,
-    eye_rev_pdf_a: f32,
-) -> f32 {
+/// The pdfs of a connection between a light vertex and an eye vertex (s, t >= 2).
+#[derive(Clone, Copy, Debug)]
+pub struct ConnectionPdfs {
+    /// Each end's solid-angle pdf back along its own sub-path, given the connection.
+    pub light_rev_pdf_w: f32,
+    pub eye_rev_pdf_w: f32,
+    /// The light vertex's area pdf when the eye vertex samples it, and the other way round.
+    pub light_pdf_a: f32,
+    pub eye_pdf_a: f32,
+}
+
+/// The BPT weight of a connection between light vertex `light` and eye vertex `eye`.
+pub fn bpt_connect(power: Power, light: &BptVertex, eye: &BptVertex, p: &ConnectionPdfs) -> f32 {
     bpt_weight(
-        light.ratio_sum(power, light_rev_pdf_w, light_rev_pdf_a),
-        eye.ratio_sum(power, eye_rev_pdf_w, eye_rev_pdf_a),
+        light.ratio_sum(power, p.light_rev_pdf_w, p.light_pdf_a),
+        eye.ratio_sum(power, p.eye_rev_pdf_w, p.eye_pdf_a),
     )
 }
 
@@ -186,21 +197,66 @@ pub fn bpt_to_camera(
     )
 }
 
-/// Whether merging at the vertex a sub-path scatters from is one of the techniques. Vertex
-/// merging by density estimation (`vcm`, `bpm`, `ppm`) merges at every non-delta vertex;
-/// unbiased photon gathering needs the merge vertex's neighbour on the gathering side to be a
-/// non-delta surface vertex too (the tentative rays leave from it, 000 sec. 2.4.3), and its
-/// clamped weight needs the pdf with which that neighbour samples the merge vertex: for one of
-/// the two sub-paths both are known only once the sub-path has gone on.
+/// How the merges of a technique are made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Gather {
+    /// Density estimation around the eye vertex (`vcm`, `bpm`, `ppm`; 001 eq. (20)).
+    Density,
+    /// `upg`: the light vertex's predecessor is connected to the eye vertex, and the tentative
+    /// rays leave from that predecessor (000 sec. 2.4.3).
+    UpgLight,
+    /// `upg-camera`: the eye vertex's predecessor is connected to the light vertex (UPG*).
+    UpgCamera,
+}
+
+/// What lies next to a vertex along the path, on one side.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Neighbour {
+    /// A non-delta surface vertex: tentative rays can leave from it.
+    Surface,
+    /// A light point, the camera or a delta vertex.
+    Other,
+    /// Not traced yet: the sub-path has not gone on from here.
+    Unknown,
+}
+
+impl Neighbour {
+    pub fn surface_if(surface: bool) -> Self {
+        if surface {
+            Neighbour::Surface
+        } else {
+            Neighbour::Other
+        }
+    }
+}
+
+/// Whether merging at a (non-delta) vertex is one of the techniques.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum VmHere {
-    /// A technique, gathered from this sub-path's side: its pdf is this vertex's d^VCM.
     Valid,
     Invalid,
-    /// Gathered from the other side: kept pending ([`VcmVertex::pending_vm`]) until the next
-    /// vertex shows whether it is a surface ([`VcmWeights::drop_pending`]) and a use of that
-    /// vertex gives its reverse pdf ([`VcmWeights::settle`]).
+    /// Decided by a neighbour not traced yet: UPG keeps the merge's term aside
+    /// (`upg::Deferred`) until the sub-path's next vertex decides it.
     Deferred,
+}
+
+impl Gather {
+    /// The one rule for where a merge is a technique, given the merge vertex's neighbours
+    /// towards the light and towards the eye. A density estimate merges at every non-delta
+    /// vertex; unbiased photon gathering needs the neighbour on its gathering side to be a
+    /// non-delta surface vertex, since the tentative rays leave from it (000 sec. 2.4.3).
+    pub fn merge_at(self, light_side: Neighbour, eye_side: Neighbour) -> VmHere {
+        let neighbour = match self {
+            Gather::Density => return VmHere::Valid,
+            Gather::UpgLight => light_side,
+            Gather::UpgCamera => eye_side,
+        };
+        match neighbour {
+            Neighbour::Surface => VmHere::Valid,
+            Neighbour::Other => VmHere::Invalid,
+            Neighbour::Unknown => VmHere::Deferred,
+        }
+    }
 }
 
 /// Per-iteration constants of the VCM weights (001 eqs. (20)-(22) and sec. 5.5-5.6).
@@ -210,8 +266,8 @@ pub enum VmHere {
 /// clamps the approximation to min(p(x_j) pi r^2, 1) (000 eq. 2.80), so eta_j =
 /// n_VM min(pi r^2, 1 / p(x_j)) depends on the area pdf p(x_j) with which the gathering side
 /// samples the merge vertex (000 eqs. 2.81-2.82). Weights are kept in the form where every
-/// merge term carries its own eta: d^VC accumulates eta_i at each vertex it passes, and a merge
-/// divides by its eta_j.
+/// merge term carries its own eta: d^VC accumulates eta_i at each vertex it passes
+/// (001 eq. (35) with eta_i for eta_VCM), and a merge divides by its eta_j.
 #[derive(Clone, Copy, Debug)]
 pub struct VcmWeights {
     pub power: Power,
@@ -226,6 +282,22 @@ pub struct VcmWeights {
     pub vm_normalization: f32,
     /// UPG's clamped acceptance (000 eq. 2.80): mis(pi r^2) and mis(n_VM); `None` for VCM.
     clamp: Option<(f32, f32)>,
+    /// 002's heuristic, when the density map has data.
+    density: Option<DensityMis>,
+    /// Connections are techniques: false for merge-only UPG, whose d^VC then sums the merges'
+    /// eta_i alone.
+    connections: bool,
+}
+
+/// The density factor and 1 / k of a merge where 002's heuristic is off (VCM, UPG).
+pub const NO_DENSITY: (f32, f32) = (1.0, 0.0);
+
+/// The geometry factors of arriving at a vertex, mis(d^2) and 1 / mis(|cos|), for whatever
+/// else a sub-path carries across the segment.
+#[derive(Clone, Copy, Debug)]
+pub struct Arrival {
+    pub d2: f32,
+    pub inv_cos: f32,
 }
 
 impl VcmWeights {
@@ -241,6 +313,31 @@ impl VcmWeights {
             vc_factor: if both { power.mis(1.0 / eta_vcm) } else { 0.0 },
             vm_normalization: 1.0 / eta_vcm,
             clamp: None,
+            connections: true,
+            density: None,
+        }
+    }
+
+    /// VCM's weights with 002's heuristic. A merge at x_i weighs c_i = n_VM / k_i light
+    /// sub-paths instead of n_VM (VCM+, 002 eq. (6)), with k_i the expected number of light
+    /// vertices within r of x_i, clamped to [1, n_VM]; so eta_i = eta_VCM / k_i, and in the
+    /// powered form mis(eta_i) = mis(eta_VCM) rho_i with rho_i = mis(1 / k_i), which callers
+    /// pass as the merge's `rho`.
+    ///
+    /// VCM* (002 eq. (7)) divides every c_i of a path by the mean 1/k over the path's
+    /// non-delta surface vertices, M = S / C with S = sum_j 1/k_j and C their count. The
+    /// factor mis(1 / M) is common to all merge terms of one path, and the power heuristic
+    /// factorises, so every weight is VCM+'s with its merge terms multiplied by
+    /// nu = mis(C / S). Its recursion is 001's with d^VC split: the connection part d^VC
+    /// (001 eq. (35) without eta_i) and the merge part d^VC_VM (the eta_i terms alone), both
+    /// carried by the same products, so d^VC of VCM+ = d^VC + d^VC_VM and VCM*'s is
+    /// d^VC + nu d^VC_VM. Each sub-path carries its own S and C ([`Self::visit`]); a weight
+    /// adds the two sub-paths' (counting a merge vertex once) and applies nu.
+    /// Without connections (bpm) only merges compete, nu cancels and VCM* is VCM+.
+    pub fn with_density(self, density: DensityMis) -> Self {
+        VcmWeights {
+            density: Some(density),
+            ..self
         }
     }
 
@@ -253,13 +350,33 @@ impl VcmWeights {
         }
     }
 
+    /// Merge-only UPG (000 sec. 5.2): the clamped merges weighed against each other alone. A
+    /// connection's term (d^VCM in d^VC and in a merge's weight) and the light origin's (the
+    /// eye sub-path hitting the light) drop out; the merges' eta_i stay.
+    pub fn clamped_merges_only(power: Power, radius: f32, light_paths: f32) -> Self {
+        VcmWeights {
+            connections: false,
+            ..VcmWeights::clamped(power, radius, light_paths)
+        }
+    }
+
+    /// d^VCM as a connection's term in d^VC and in a merge's weight: 0 without connections.
+    #[inline]
+    fn connection_term(&self, d_vcm: f32) -> f32 {
+        if self.connections {
+            d_vcm
+        } else {
+            0.0
+        }
+    }
+
     #[inline]
     pub fn mis(&self, x: f32) -> f32 {
         self.power.mis(x)
     }
 
     /// mis(eta_j) of a merge at a vertex whose gathering-side area pdf p gives
-    /// `inv_pdf` = mis(1 / p) (a d^VCM on arrival): n_VM min(pi r^2, 1 / p).
+    /// `inv_pdf` = mis(1 / p) (a d^VCM on arrival): n_VM min(pi r^2, 1 / p) (000 eq. 2.81).
     pub fn eta(&self, inv_pdf: f32) -> f32 {
         match self.clamp {
             Some((area, paths)) => paths * area.min(inv_pdf),
@@ -276,8 +393,31 @@ impl VcmWeights {
         }
     }
 
-    /// y_0 on a light (001 eqs. (31)-(33); sec. 5.1-5.2 for infinite and delta lights).
-    /// `cos_at_light` is 1 for infinite lights.
+    /// A non-delta surface vertex with 1 / k = `inv_k` joins the sub-path's VCM* mean.
+    pub fn visit(&self, v: &mut VcmVertex, inv_k: f32) {
+        if self.density == Some(DensityMis::Star) {
+            v.inv_k_sum += inv_k;
+            v.vertices += 1.0;
+        }
+    }
+
+    /// VCM*'s nu = mis(C / S) of a path whose vertices give `inv_k_sum` = S and `vertices` = C
+    /// (002 eq. (7)); 1 otherwise, and for paths with no surface vertex to merge at.
+    fn nu(&self, inv_k_sum: f32, vertices: f32) -> f32 {
+        if self.density == Some(DensityMis::Star) && vertices > 0.0 && inv_k_sum > 0.0 {
+            self.mis(vertices / inv_k_sum)
+        } else {
+            1.0
+        }
+    }
+
+    /// d^VC of a sub-path vertex with VCM*'s merge terms multiplied by `nu`.
+    fn d_vc(v: &VcmVertex, nu: f32) -> f32 {
+        v.d_vc + nu * v.d_vc_vm
+    }
+
+    /// y_0 on a light (sec. 5.1-5.2 for infinite and delta lights). `cos_at_light` is 1 for
+    /// infinite lights.
     pub fn light_origin(
         &self,
         direct_pdf_a: f32,
@@ -285,21 +425,22 @@ impl VcmWeights {
         cos_at_light: f32,
         delta: bool,
     ) -> VcmVertex {
-        let d_vc = if delta {
+        // 001 eq. (32); a delta light cannot be hit, so no technique weighs against it (sec. 5.2).
+        let d_vc = if delta || !self.connections {
             0.0
         } else {
             self.mis(cos_at_light / emission_pdf_w)
         };
         VcmVertex {
-            d_vcm: self.mis(direct_pdf_a / emission_pdf_w),
+            d_vcm: self.mis(direct_pdf_a / emission_pdf_w), // 001 eq. (31)
             d_vc,
-            d_vm: d_vc * self.vc_factor,
+            d_vm: d_vc * self.vc_factor, // 001 eq. (33)
             ..VcmVertex::default()
         }
     }
 
     /// z_0, the camera, with `camera_pdf_w` its per-pixel solid-angle pdf of the primary ray
-    /// (001 eqs. (31)-(33): p_0^connect = p_0^trace, so d^VC = d^VM = 0).
+    /// (001 eqs. (31)-(33) with p_0^connect = p_0^trace: d^VC = d^VM = 0).
     pub fn camera_origin(&self, camera_pdf_w: f32) -> VcmVertex {
         VcmVertex {
             d_vcm: self.mis(self.light_paths / camera_pdf_w),
@@ -307,28 +448,34 @@ impl VcmWeights {
         }
     }
 
-    /// Arrival at a new vertex at `distance` with |cos| `cos_in` (001 eqs. (34)-(36), the
-    /// geometry part). The first segment from an infinite light has no distance term
+    /// Arrival at a new vertex at `distance` with |cos| `cos_in`: the geometry part of 001
+    /// eqs. (34)-(36). The first segment from an infinite light has no distance term
     /// (001 sec. 5.1): `with_distance = false`.
-    pub fn arrive(&self, v: &mut VcmVertex, distance: f32, cos_in: f32, with_distance: bool) {
+    pub fn arrive(
+        &self,
+        v: &mut VcmVertex,
+        distance: f32,
+        cos_in: f32,
+        with_distance: bool,
+    ) -> Arrival {
         let d2 = if with_distance {
             self.mis(distance * distance)
         } else {
             1.0
         };
-        let inv = 1.0 / self.mis(cos_in);
-        v.d_vcm *= d2 * inv;
-        v.d_vc *= inv;
-        v.d_vm *= inv;
-        v.pending_vm *= inv;
-        // The pending merge's vertex is sampled from here across this segment.
-        v.pending_g /= d2;
+        let inv_cos = 1.0 / self.mis(cos_in);
+        v.d_vcm *= d2 * inv_cos; // 001 eq. (34)
+        v.d_vc *= inv_cos; // 001 eq. (35)
+        v.d_vc_vm *= inv_cos;
+        v.d_vm *= inv_cos; // 001 eq. (36)
+        Arrival { d2, inv_cos }
     }
 
-    /// Scattering at a vertex (001 eqs. (34)-(36), the sampling part): `pdf_w` the pdf of the
-    /// sampled direction, `rev_pdf_w` of the reverse, `cos_out` at the sampled direction.
-    /// `merge_here` says whether merging at this vertex is a technique; its terms are eta_i in
-    /// d^VC and 1 in d^VM (001 eqs. (35)-(36), where eta_i = eta_VCM).
+    /// Scattering at a vertex: the sampling part of 001 eqs. (34)-(36). `pdf_w` the pdf of the
+    /// sampled direction, `rev_pdf_w` of the reverse, `cos_out` at the sampled direction;
+    /// `merge_here` whether merging at this vertex is a technique, its terms eta_i rho in d^VC
+    /// and rho in d^VM (`rho` the density factor, [`Self::with_density`]; 1 for VCM and UPG).
+    /// Returns mis(cos_out / pdf_w), the factor a merge term at this vertex takes.
     pub fn scatter(
         &self,
         v: &mut VcmVertex,
@@ -336,112 +483,77 @@ impl VcmWeights {
         pdf_w: f32,
         rev_pdf_w: f32,
         delta: bool,
-        merge_here: VmHere,
-    ) {
+        (merge_here, rho): (bool, f32),
+    ) -> f32 {
         if delta {
             // 001 sec. 5.3: delta pdfs cancel; only the cosine ratio survives.
+            let cos = self.mis(cos_out);
             v.d_vcm = 0.0;
-            v.d_vc *= self.mis(cos_out);
-            v.d_vm *= self.mis(cos_out);
+            v.d_vc *= cos;
+            v.d_vc_vm *= cos;
+            v.d_vm *= cos;
+            return 0.0;
+        }
+        let ratio = self.mis(cos_out / pdf_w);
+        let (eta, here) = if merge_here {
+            (self.eta(v.d_vcm) * rho, rho)
         } else {
-            *v = self.settle(v, rev_pdf_w);
-            let ratio = self.mis(cos_out / pdf_w);
-            let (eta, here) = match merge_here {
-                VmHere::Valid => (self.eta(v.d_vcm), 1.0),
-                VmHere::Invalid | VmHere::Deferred => (0.0, 0.0),
-            };
-            v.d_vc = ratio * (v.d_vc * self.mis(rev_pdf_w) + v.d_vcm + eta);
-            v.d_vm = ratio * (v.d_vm * self.mis(rev_pdf_w) + v.d_vcm * self.vc_factor + here);
-            v.d_vcm = self.mis(1.0 / pdf_w);
-            if merge_here == VmHere::Deferred {
-                v.pending_vm = ratio;
-                v.pending_g = self.mis(cos_out);
-            }
+            (0.0, 0.0)
+        };
+        let rev = self.mis(rev_pdf_w);
+        if self.density == Some(DensityMis::Star) {
+            v.d_vc = ratio * (v.d_vc * rev + self.connection_term(v.d_vcm)); // 001 eq. (35), connection terms
+            v.d_vc_vm = ratio * (v.d_vc_vm * rev + eta); // 001 eq. (35), merge terms
+        } else {
+            v.d_vc = ratio * (v.d_vc * rev + self.connection_term(v.d_vcm) + eta);
+            // 001 eq. (35)
         }
-    }
-
-    /// On arrival: a pending merge of the previous vertex is a technique only if this vertex
-    /// is a non-delta surface vertex the tentative rays can leave from.
-    pub fn drop_pending(&self, v: &mut VcmVertex, surface: bool) {
-        if !surface {
-            v.pending_vm = 0.0;
-        }
-    }
-
-    /// `v` with its pending merge term added, once a use of the vertex fixes `rev_pdf_w`: the
-    /// pdf with which it samples the previous vertex, which makes that vertex's gathering-side
-    /// area pdf.
-    pub fn settle(&self, v: &VcmVertex, rev_pdf_w: f32) -> VcmVertex {
-        if v.pending_vm == 0.0 {
-            return *v;
-        }
-        let pdf = self.mis(rev_pdf_w) * v.pending_g;
-        VcmVertex {
-            d_vc: v.d_vc + v.pending_vm * self.eta(1.0 / pdf),
-            d_vm: v.d_vm + v.pending_vm,
-            pending_vm: 0.0,
-            pending_g: 0.0,
-            ..*v
-        }
+        v.d_vm = ratio * (v.d_vm * rev + v.d_vcm * self.vc_factor + here); // 001 eq. (36)
+        v.d_vcm = self.mis(1.0 / pdf_w); // 001 eq. (34)
+        ratio
     }
 
     /// An eye sub-path hits a light (s = 0; 001 eqs. (42)-(43)); the pdfs include the light's
-    /// pick probability. No merge is gathered from a light point, so a pending one is dropped.
+    /// pick probability. The light point is no vertex to merge at.
     pub fn hit_light(&self, eye: &VcmVertex, direct_pdf_a: f32, emission_pdf_w: f32) -> f32 {
-        let w_camera = self.mis(direct_pdf_a) * eye.d_vcm + self.mis(emission_pdf_w) * eye.d_vc;
+        let nu = self.nu(eye.inv_k_sum, eye.vertices);
+        let w_camera =
+            self.mis(direct_pdf_a) * eye.d_vcm + self.mis(emission_pdf_w) * Self::d_vc(eye, nu);
         1.0 / (1.0 + w_camera)
     }
 
-    /// Light sampling (s = 1; 001 eqs. (44)-(45)). `light_pdf_w` is the pick probability times
-    /// the solid-angle pdf of the light point at the receiver, `emission_pdf_w` the light's
-    /// emission pdf of the connecting direction (without the pick), `bsdf` the eye vertex's
-    /// pdfs towards the light; `eye_eta` the merge at the eye vertex ([`Self::eta_if`]).
-    #[allow(clippy::too_many_arguments)]
-    pub fn light_sample(
-        &self,
-        eye: &VcmVertex,
-        eye_eta: f32,
-        bsdf_pdf_w: f32,
-        bsdf_rev_pdf_w: f32,
-        light_pdf_w: f32,
-        direct_pdf_w: f32,
-        emission_pdf_w: f32,
-        cos_to_light: f32,
-        cos_at_light: f32,
-        delta_light: bool,
-    ) -> f32 {
-        let eye = self.settle(eye, bsdf_rev_pdf_w);
-        let w_light = if delta_light {
+    /// Light sampling (s = 1; 001 eqs. (44)-(45)); `eye_eta` is the merge at the eye vertex
+    /// ([`Self::eta_if`] times its density factor).
+    pub fn light_sample(&self, eye: &VcmVertex, eye_eta: f32, p: &LightSamplePdfs) -> f32 {
+        let nu = self.nu(eye.inv_k_sum, eye.vertices);
+        let w_light = if p.delta_light {
             0.0
         } else {
-            self.mis(bsdf_pdf_w / light_pdf_w)
+            self.mis(p.bsdf_pdf_w / p.light_pdf_w) // 001 eq. (44)
         };
-        let w_camera = self.mis(emission_pdf_w * cos_to_light / (direct_pdf_w * cos_at_light))
-            * (eye_eta + eye.d_vcm + eye.d_vc * self.mis(bsdf_rev_pdf_w));
+        let w_camera = self.mis(p.eye_rev_pdf_a())
+            * (eye_eta * nu + eye.d_vcm + Self::d_vc(eye, nu) * self.mis(p.bsdf_rev_pdf_w)); // 001 eq. (45)
         1.0 / (w_light + 1.0 + w_camera)
     }
 
-    /// Connection of a light vertex and an eye vertex (s, t > 1; 001 eqs. (40)-(41)): each
-    /// side's area pdf of being sampled by the other, each side's reverse pdf, and the merges
-    /// at the two end vertices ([`Self::eta_if`]).
-    #[allow(clippy::too_many_arguments)]
+    /// Connection of a light vertex and an eye vertex (s, t > 1; 001 eqs. (40)-(41)), with the
+    /// merges at the two end vertices ([`Self::eta_if`] times their density factors).
     pub fn connect(
         &self,
         light: &VcmVertex,
         light_eta: f32,
         eye: &VcmVertex,
         eye_eta: f32,
-        light_rev_pdf_w: f32,
-        eye_rev_pdf_w: f32,
-        light_pdf_a: f32,
-        eye_pdf_a: f32,
+        p: &ConnectionPdfs,
     ) -> f32 {
-        let light = self.settle(light, light_rev_pdf_w);
-        let eye = self.settle(eye, eye_rev_pdf_w);
-        let w_light = self.mis(eye_pdf_a)
-            * (light_eta + light.d_vcm + light.d_vc * self.mis(light_rev_pdf_w));
-        let w_camera =
-            self.mis(light_pdf_a) * (eye_eta + eye.d_vcm + eye.d_vc * self.mis(eye_rev_pdf_w));
+        let nu = self.nu(
+            light.inv_k_sum + eye.inv_k_sum,
+            light.vertices + eye.vertices,
+        );
+        let w_light = self.mis(p.light_pdf_a)
+            * (light_eta * nu + light.d_vcm + Self::d_vc(light, nu) * self.mis(p.light_rev_pdf_w)); // 001 eq. (40)
+        let w_camera = self.mis(p.eye_pdf_a)
+            * (eye_eta * nu + eye.d_vcm + Self::d_vc(eye, nu) * self.mis(p.eye_rev_pdf_w)); // 001 eq. (41)
         1.0 / (w_light + 1.0 + w_camera)
     }
 
@@ -454,46 +566,64 @@ impl VcmWeights {
         camera_pdf_a: f32,
         rev_pdf_w: f32,
     ) -> f32 {
-        let light = self.settle(light, rev_pdf_w);
+        let nu = self.nu(light.inv_k_sum, light.vertices);
         let w_light = self.mis(camera_pdf_a / self.light_paths)
-            * (light_eta + light.d_vcm + light.d_vc * self.mis(rev_pdf_w));
+            * (light_eta * nu + light.d_vcm + Self::d_vc(light, nu) * self.mis(rev_pdf_w)); // 001 eq. (46)
         1.0 / (w_light + 1.0)
     }
 
     /// A merge of a light vertex at an eye vertex (001 eqs. (38)-(39)): `pdf_w` the eye BSDF's
     /// pdf towards the light vertex's incoming direction, `rev_pdf_w` the reverse, `eta` the
-    /// merge's own ([`Self::eta`]). With connections, each side's sum over its techniques is
-    /// (d^VCM + d^VC mis(pdf)) / eta_j; without (bpm), d^VM holds the merges alone.
+    /// merge's own ([`Self::eta`]) and `(rho, inv_k)` its density factor and 1 / k (1 and 0
+    /// for VCM and UPG; both sub-paths counted the merge vertex, VCM* counts it once).
+    ///
+    /// 001 eq. (38) writes each side as d^VCM / eta_VCM + d^VM mis(pdf). With connections,
+    /// d^VC = eta_VCM d^VM holds at every vertex (compare eqs. (35) and (36): every term of
+    /// d^VM is d^VC's divided by eta_VCM, and eq. (33) starts it so), so that form equals
+    /// (d^VCM + d^VC mis(pdf)) / eta_VCM, used here because it holds for per-vertex eta_j
+    /// too (UPG's clamped acceptance, 002's density factors), where d^VM cannot carry each
+    /// merge's own eta. Without connections (bpm) d^VC is zero and d^VM holds the merges alone,
+    /// each with its density factor.
     pub fn merge(
         &self,
         light: &VcmVertex,
         eye: &VcmVertex,
-        pdf_w: f32,
-        rev_pdf_w: f32,
+        (pdf_w, rev_pdf_w): (f32, f32),
         eta: f32,
+        (rho, inv_k): (f32, f32),
     ) -> f32 {
-        let light = self.settle(light, pdf_w);
-        let eye = self.settle(eye, rev_pdf_w);
         let (w_light, w_camera) = if self.vm_factor > 0.0 {
+            let nu = self.nu(
+                light.inv_k_sum + eye.inv_k_sum - inv_k,
+                light.vertices + eye.vertices - 1.0,
+            );
+            let eta = eta * rho * nu;
             (
-                (light.d_vcm + light.d_vc * self.mis(pdf_w)) / eta,
-                (eye.d_vcm + eye.d_vc * self.mis(rev_pdf_w)) / eta,
+                (self.connection_term(light.d_vcm) + Self::d_vc(light, nu) * self.mis(pdf_w)) / eta, // 001 eq. (38)
+                (self.connection_term(eye.d_vcm) + Self::d_vc(eye, nu) * self.mis(rev_pdf_w)) / eta, // 001 eq. (39)
             )
         } else {
-            (light.d_vm * self.mis(pdf_w), eye.d_vm * self.mis(rev_pdf_w))
+            (
+                light.d_vm * self.mis(pdf_w) / rho,
+                eye.d_vm * self.mis(rev_pdf_w) / rho,
+            )
         };
         1.0 / (w_light + 1.0 + w_camera)
     }
 }
 
-/// SmallVCM's MIS quantities of one sub-path vertex (001 eqs. (31)-(36)).
+/// SmallVCM's MIS quantities of one sub-path vertex (001 eqs. (31)-(36)), and what VCM*
+/// carries besides (zero otherwise; see [`VcmWeights::with_density`]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct VcmVertex {
     pub d_vcm: f32,
     pub d_vc: f32,
     pub d_vm: f32,
-    /// A [`VmHere::Deferred`] merge at the previous vertex: its factor in d^VC (before eta),
-    /// and mis(|cos| / d^2) of that vertex seen from this one.
-    pub pending_vm: f32,
-    pub pending_g: f32,
+    /// VCM*: the merge terms of d^VC, kept apart from its connection terms because the path's
+    /// normalisation, known only once the path is whole, multiplies them alone.
+    pub d_vc_vm: f32,
+    /// VCM*: sum of 1 / k_j over the sub-path's non-delta surface vertices so far, this one
+    /// included, and their count (002 eq. (7)'s mean, split between the sub-paths).
+    pub inv_k_sum: f32,
+    pub vertices: f32,
 }

@@ -2,54 +2,18 @@
 //! per pixel and, for the bidirectional ones, one light sub-path per pixel (001 sec. 2.3).
 
 use crate::color::Rgb;
-use crate::render::RenderOptions;
+use crate::options::{RenderOptions, Technique};
 use crate::scene::{Camera, Scene};
+use upg::UpgCounters;
 
 pub mod bpt;
 pub mod connection;
+pub mod density;
 pub mod mis;
 pub mod pt;
+pub mod subpath;
 pub mod upg;
 pub mod vcm;
-
-/// The rendering techniques.
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "kebab-case")]
-pub enum Technique {
-    /// Path tracing with next-event estimation.
-    Pt,
-    /// Light tracing, splatting to the camera.
-    Lt,
-    /// Bidirectional path tracing.
-    Bpt,
-    /// Progressive photon mapping.
-    Ppm,
-    /// Bidirectional photon mapping.
-    Bpm,
-    /// Vertex connection and merging.
-    Vcm,
-    /// Unbiased photon gathering, merging from the light side.
-    Upg,
-    /// Unbiased photon gathering, merging from the camera side.
-    UpgCamera,
-}
-
-impl Technique {
-    pub fn name(self) -> &'static str {
-        match self {
-            Technique::Pt => "pt",
-            Technique::Lt => "lt",
-            Technique::Bpt => "bpt",
-            Technique::Ppm => "ppm",
-            Technique::Bpm => "bpm",
-            Technique::Vcm => "vcm",
-            Technique::Upg => "upg",
-            Technique::UpgCamera => "upg-camera",
-        }
-    }
-}
 
 /// Counters an iteration reports besides its image.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -69,45 +33,6 @@ impl std::ops::Add for IterationStats {
             rays: self.rays + other.rays,
             upg: self.upg + other.upg,
         }
-    }
-}
-
-/// The tentative-ray work of unbiased photon gathering (000 Table 3.2).
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct UpgCounters {
-    /// Merges whose 1/p_acc was estimated.
-    pub merges: u64,
-    /// Bernoulli trials, and the tentative rays traced for them (a trial whose direction
-    /// misses the gathering sphere needs no ray).
-    pub trials: u64,
-    pub tentative_rays: u64,
-    /// Merges dropped at the trial cap.
-    pub capped: u64,
-}
-
-impl std::ops::Add for UpgCounters {
-    type Output = UpgCounters;
-    fn add(self, other: UpgCounters) -> UpgCounters {
-        UpgCounters {
-            merges: self.merges + other.merges,
-            trials: self.trials + other.trials,
-            tentative_rays: self.tentative_rays + other.tentative_rays,
-            capped: self.capped + other.capped,
-        }
-    }
-}
-
-impl UpgCounters {
-    /// Metadata entries: the thesis reports about 2.81 trials per merge (000 sec. 2.4.3).
-    pub fn statistics(&self) -> Vec<(String, String)> {
-        let per_merge = |n: u64| format!("{:.3}", n as f64 / self.merges.max(1) as f64);
-        vec![
-            ("upg_merges".into(), self.merges.to_string()),
-            ("upg_trials_per_merge".into(), per_merge(self.trials)),
-            ("upg_rays_per_merge".into(), per_merge(self.tentative_rays)),
-            ("upg_tentative_rays".into(), self.tentative_rays.to_string()),
-            ("upg_capped_merges".into(), self.capped.to_string()),
-        ]
     }
 }
 

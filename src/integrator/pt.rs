@@ -32,6 +32,8 @@ impl<'a> PathTracer<'a> {
         let scene = self.ctx.scene;
         let max_length = self.ctx.max_path_length();
         let roulette = self.ctx.options.roulette;
+        // Paths of fewer segments are left out (`min_path_length`).
+        let min_length = self.ctx.options.min_path_length;
         let mut radiance = Rgb::BLACK;
         let mut throughput = Rgb::WHITE;
         let mut rays = 0u64;
@@ -44,7 +46,11 @@ impl<'a> PathTracer<'a> {
         loop {
             rays += 1;
             let Some(hit) = scene.intersect(&ray) else {
-                if let Some(received) = scene.lights.background(ray.dir) {
+                if let Some(received) = scene
+                    .lights
+                    .background(ray.dir)
+                    .filter(|_| length >= min_length)
+                {
                     let weight = if last_delta {
                         1.0
                     } else {
@@ -55,15 +61,16 @@ impl<'a> PathTracer<'a> {
                 }
                 break;
             };
-            radiance += throughput * self.emitted(&ray, &hit, last_pdf_w, last_delta);
+            if length >= min_length {
+                radiance += throughput * self.emitted(&ray, &hit, last_pdf_w, last_delta);
+            }
             if length >= max_length {
                 break;
             }
-            let material = &scene.material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, -ray.dir, TransportMode::Radiance) else {
+            let Some(bsdf) = scene.bsdf_at(&hit, -ray.dir, TransportMode::Radiance) else {
                 break;
             };
-            if !bsdf.is_delta() {
+            if !bsdf.is_delta() && length + 1 >= min_length {
                 let (light, shadow_rays) = self.sample_light(&hit, &bsdf, rng);
                 radiance += throughput * light;
                 rays += shadow_rays;

@@ -2,34 +2,38 @@
 //! tracing (`lt`), bidirectional photon mapping (`bpm`, VM only: 001 sec. 5.6) and progressive
 //! photon mapping (`ppm`, one merge at the first non-specular eye vertex). With `--no-vm` it is
 //! BPT (001 sec. 5.5, eta_VCM = 0), which `bpt.rs` implements separately as its cross-check.
+//! Unbiased photon gathering (`upg`, `upg-camera`) is the same family with another merge,
+//! made in `upg/merge.rs`.
 //!
-//! The structure follows SmallVCM's VertexCM: an iteration traces one light sub-path per pixel
-//! (n_light = n_VM = pixel count, 001 sec. 2.3), stores its non-specular vertices with the MIS
-//! quantities d_vcm, d_vc, d_vm (001 eqs. 31-36) and connects them to the camera; builds the
-//! hash grid over them; then traces one eye sub-path per pixel that at every non-specular vertex
-//! takes emission, a light sample, connections to its pixel's light sub-path and merges with
-//! nearby light vertices, each weighted by 001 eqs. 37-47. Every quantity is SmallVCM's "with
-//! the power already applied" form: `mis(x) = x^beta`.
+//! The structure follows SmallVCM's VertexCM, read top to bottom:
+//! 1. the light pass ([`VertexCm::trace_light_path`]): one light sub-path per pixel (n_light =
+//!    n_VM = pixel count, 001 sec. 2.3; `light_paths` sets another count) from
+//!    [`VertexCm::light_sample`]; its non-specular
+//!    vertices are stored with the MIS quantities d^VCM, d^VC, d^VM and connected to the camera;
+//! 2. the hash grid over the stored vertices;
+//! 3. the eye pass ([`VertexCm::trace_eye_path`]): one eye sub-path per pixel that at every
+//!    non-specular vertex takes emission, a light sample, connections to its pixel's light
+//!    sub-path and merges with the light vertices around it.
 //!
-//! Unbiased photon gathering (`upg`, `upg-camera`; 000 secs. 2.4.3-2.4.6) is the same family
-//! with another merge: instead of a density estimate, an explicit connection from the merge
-//! vertex's neighbour on the gathering side, divided by the acceptance probability that
-//! tentative rays estimate (`upg/acceptance.rs`), weighted with the clamped acceptance.
-//!
-//! Russian roulette is left out of the pdfs the weights use: weights only need to sum to one
-//! over the techniques, and every technique evaluates the same pdfs.
+//! The weights themselves are in `mis.rs` (001 eqs. 31-47), in SmallVCM's "power already
+//! applied" form, mis(x) = x^beta. Russian roulette is left out of the pdfs the weights use:
+//! weights only need to sum to one over the techniques, and every technique evaluates the same
+//! pdfs.
 
 use super::connection::{Connection, LightSample};
-use super::mis::{Power, VcmVertex, VcmWeights, VmHere};
-use super::upg::acceptance::{
-    AngularBound, Estimator, Outcome, PacketWidth, StoredVerticesOnly, TentativeTracer,
-};
-use super::{Integrator, IterationStats, RenderContext, Technique, UpgCounters};
+use super::density::DensityMap;
+use super::mis::{ConnectionPdfs, Gather, Neighbour, Power, VcmWeights, VmHere, NO_DENSITY};
+use super::subpath::{EyeVertex, LightChunk, LightPaths, LightVertex, SubPath};
+use super::upg::acceptance::{Estimator, PacketWidth};
+use super::upg::merge::{Gathered, Tentative, UpgMerges};
+use super::upg::{Deferred, UpgCounters};
+use super::{Integrator, IterationStats, RenderContext};
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::hashgrid::HashGrid;
+use crate::options::{RenderOptions, Technique};
 use crate::sampling::{Rng, Stream};
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
@@ -50,111 +54,50 @@ struct Modes {
     /// Light tracing alone: light vertices splatted to the camera with weight 1.
     light_trace: bool,
     /// How a merge is made.
-    merge: Merge,
-}
-
-/// Vertex merging by density estimation (001), or unbiased photon gathering from either side
-/// (000 sec. 2.4.3): an explicit connection whose pdf holds the estimated 1/p_acc.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Merge {
-    Density,
-    /// `upg`: the light vertex's predecessor is connected to the eye vertex.
-    UpgLight,
-    /// `upg-camera`: the eye vertex's predecessor is connected to the light vertex.
-    UpgCamera,
+    gather: Gather,
 }
 
 impl Modes {
-    fn for_technique(technique: Technique, no_vc: bool, no_vm: bool) -> Self {
-        let (vc, vm, ppm, light_trace) = match technique {
+    fn for_options(o: &RenderOptions) -> Self {
+        let (vc, vm, ppm, light_trace) = match o.technique {
             Technique::Lt => (false, false, false, true),
             Technique::Ppm => (false, true, true, false),
             Technique::Bpm => (false, true, false, false),
-            Technique::Upg | Technique::UpgCamera => (true, true, false, false),
-            _ => (!no_vc, !no_vm, false, false),
+            Technique::Upg | Technique::UpgCamera => (!o.no_vc, true, false, false),
+            _ => (!o.no_vc, !o.no_vm, false, false),
         };
-        let merge = match technique {
-            Technique::Upg => Merge::UpgLight,
-            Technique::UpgCamera => Merge::UpgCamera,
-            _ => Merge::Density,
+        let gather = match o.technique {
+            Technique::Upg => Gather::UpgLight,
+            Technique::UpgCamera => Gather::UpgCamera,
+            _ => Gather::Density,
         };
         Modes {
             vc,
             vm,
             ppm,
             light_trace,
-            merge,
+            gather,
         }
     }
 
-    /// Whether merging at the vertex a sub-path scatters from is a technique. UPG's tentative
-    /// rays leave from the merge vertex's neighbour on the gathering side, which must be a
-    /// non-delta surface vertex: on the light side for `upg` (known: the previous vertex),
-    /// on the eye side for `upg-camera` (known for the eye sub-path, the next vertex for the
-    /// light sub-path).
-    fn merge_here(&self, light_side: bool, prev_surface: bool) -> VmHere {
-        let known = |ok: bool| if ok { VmHere::Valid } else { VmHere::Invalid };
-        match (self.merge, light_side) {
-            (Merge::Density, _) => VmHere::Valid,
-            (Merge::UpgLight, true) | (Merge::UpgCamera, false) => known(prev_surface),
-            (Merge::UpgLight, false) | (Merge::UpgCamera, true) => VmHere::Deferred,
+    /// Whether merging is a technique at a vertex a sub-path scatters from: its neighbour back
+    /// along the sub-path is known, the one on the other side is not traced yet.
+    fn merge_leaving(&self, light_side: bool, prev_surface: bool) -> VmHere {
+        let known = Neighbour::surface_if(prev_surface);
+        if light_side {
+            self.gather.merge_at(known, Neighbour::Unknown)
+        } else {
+            self.gather.merge_at(Neighbour::Unknown, known)
         }
     }
 }
 
-/// A stored light sub-path vertex: everything a connection or a merge needs (68 bytes).
-#[derive(Clone, Copy, Debug)]
-pub struct LightVertex {
-    pub position: Vec3,
-    /// Geometric normal.
-    pub ng: Vec3,
-    /// Unit direction back towards the previous vertex of the light sub-path.
-    pub wo: Vec3,
-    pub throughput: Rgb,
-    pub material: u32,
-    /// Segments from the light to this vertex.
-    pub path_length: u32,
-    pub mis: VcmVertex,
-    /// The previous vertex of the sub-path is a non-delta surface vertex, stored just before
-    /// this one.
-    pub after_surface: bool,
-}
-
-/// What one task of the light pass produces: vertices and where each path's end, camera
-/// splats, counters.
-#[derive(Default)]
-struct LightChunk {
-    vertices: Vec<LightVertex>,
-    ends: Vec<u32>,
-    splats: Vec<(usize, Rgb)>,
-    stats: IterationStats,
-}
-
-/// The state of a sub-path being traced (SmallVCM's SubPathState).
-#[derive(Clone, Copy, Debug)]
-struct SubPath {
-    ray: Ray,
-    throughput: Rgb,
-    path_length: u32,
-    /// Light sub-paths: started on a finite light (distance terms apply to the first segment).
-    finite_light: bool,
-    /// Eye sub-paths: every scattering so far was a delta lobe.
-    specular: bool,
-    /// The vertex the ray left from is a non-delta surface vertex.
-    prev_surface: bool,
-    mis: VcmVertex,
-}
-
-/// The last eye vertex, kept for `upg-camera`'s merges at the next one.
-#[derive(Clone)]
-struct EyeVertex<'b> {
-    hit: SurfaceHit,
-    bsdf: Bsdf<'b>,
-    /// Throughput and MIS quantities on arrival, before scattering on.
-    throughput: Rgb,
-    mis: VcmVertex,
-    prev_surface: bool,
-    path_length: u32,
+/// What the eye sub-paths of one iteration share.
+struct EyePass<'i> {
+    w: VcmWeights,
+    iteration: u64,
+    light: &'i LightPaths,
+    grid: Option<&'i HashGrid>,
 }
 
 pub struct VertexCm<'a> {
@@ -162,8 +105,10 @@ pub struct VertexCm<'a> {
     modes: Modes,
     base_radius: f32,
     alpha: f32,
-    /// UPG's estimator of 1/p_acc.
-    estimator: Estimator,
+    /// The merges of `upg` and `upg-camera`.
+    upg_merges: Option<UpgMerges<'a>>,
+    /// 002's density map, for `--density-mis`.
+    density: Option<DensityMap>,
     /// Light vertices stored in the last iteration, for the statistics.
     stored_vertices: usize,
     /// UPG's counters over all iterations so far.
@@ -173,28 +118,35 @@ pub struct VertexCm<'a> {
 impl<'a> VertexCm<'a> {
     pub fn new(ctx: RenderContext<'a>) -> Self {
         let o = ctx.options;
-        let modes = Modes::for_technique(o.technique, o.no_vc, o.no_vm);
+        let modes = Modes::for_options(o);
         let base_radius = o.radius.unwrap_or_else(|| ctx.scene.default_radius());
-        // UPG is unbiased at any radius: it keeps its radius (000 sec. 2.4.6).
-        let alpha = if modes.vm && modes.merge == Merge::Density {
-            o.alpha.unwrap_or(0.75)
-        } else {
-            1.0
-        };
-        let estimator = Estimator {
-            packet: if o.upg_packet == 8 {
-                PacketWidth::Eight
-            } else {
-                PacketWidth::One
-            },
-            max_trials: o.upg_max_trials,
-        };
+        let upg_merges = (modes.gather != Gather::Density).then(|| {
+            let estimator = Estimator {
+                packet: if o.upg_packet == 8 {
+                    PacketWidth::Eight
+                } else {
+                    PacketWidth::One
+                },
+                max_trials: o.upg_max_trials,
+            };
+            UpgMerges::new(
+                ctx.scene,
+                modes.gather,
+                estimator,
+                [o.min_path_length, ctx.max_path_length()],
+                o.roulette,
+            )
+        });
+        let density = o
+            .density_mis
+            .map(|_| DensityMap::new(base_radius, o.density_map_iterations));
         VertexCm {
-            ctx,
             modes,
             base_radius,
-            alpha,
-            estimator,
+            alpha: o.alpha(),
+            upg_merges,
+            density,
+            ctx,
             stored_vertices: 0,
             upg: UpgCounters::default(),
         }
@@ -205,19 +157,52 @@ impl<'a> VertexCm<'a> {
     fn weights(&self, iteration: u64) -> VcmWeights {
         let i = (iteration + 1) as f32;
         let radius = (self.base_radius * i.powf(0.5 * (self.alpha - 1.0))).max(1e-7);
-        let (power, paths) = (
-            Power(self.ctx.options.beta),
-            self.ctx.camera.pixel_count() as f32,
-        );
-        if self.modes.merge == Merge::Density {
-            VcmWeights::new(power, radius, paths, self.modes.vc, self.modes.vm)
-        } else {
-            VcmWeights::clamped(power, radius, paths)
+        let (power, paths) = (Power(self.ctx.options.beta), self.light_paths() as f32);
+        if self.modes.gather != Gather::Density {
+            return if self.modes.vc {
+                VcmWeights::clamped(power, radius, paths)
+            } else {
+                VcmWeights::clamped_merges_only(power, radius, paths)
+            };
+        }
+        let w = VcmWeights::new(power, radius, paths, self.modes.vc, self.modes.vm);
+        match (self.ctx.options.density_mis, &self.density) {
+            (Some(mode), Some(map)) if map.iterations() > 0 => w.with_density(mode),
+            _ => w,
         }
     }
 
-    fn scene(&self) -> &Scene {
+    /// The density factor rho = mis(1 / k) of a merge at `x` and its 1 / k (002 eq. (6)),
+    /// with `x` joining the sub-path's VCM* mean; [`NO_DENSITY`] without the density map.
+    fn density_at(&self, w: &VcmWeights, x: Vec3, state: &mut SubPath) -> (f32, f32) {
+        let inv_k = self
+            .density
+            .as_ref()
+            .and_then(|map| map.inv_expected_count(x, w.radius, w.light_paths));
+        match inv_k {
+            Some(inv_k) => {
+                w.visit(&mut state.mis, inv_k);
+                (w.mis(inv_k), inv_k)
+            }
+            None => NO_DENSITY,
+        }
+    }
+
+    fn scene(&self) -> &'a Scene {
         self.ctx.scene
+    }
+
+    /// Light sub-paths per iteration: n_VM, and the light tracer's n_light (001 sec. 2.3).
+    fn light_paths(&self) -> usize {
+        match self.ctx.options.light_paths {
+            Some(n) => n as usize,
+            None => self.ctx.camera.pixel_count(),
+        }
+    }
+
+    /// Whether a full path of `segments` is short of `--min-path-length` and left out.
+    fn too_short(&self, segments: u32) -> bool {
+        segments < self.ctx.options.min_path_length
     }
 
     /// Starts a light sub-path (SmallVCM's GenerateLightSample; 001 eqs. 31-33).
@@ -250,11 +235,22 @@ impl<'a> VertexCm<'a> {
             specular: false,
             prev_surface: false,
             mis: w.light_origin(direct_pdf_a, emission_pdf_w, cos_at_light, light.is_delta()),
+            deferred: Deferred::NONE,
+            density: NO_DENSITY,
         })
     }
 
-    /// Continues a sub-path by sampling the BSDF (SmallVCM's SampleScattering; 001 eqs. 34-36).
-    /// `None` ends the path.
+    /// Distance and cosine updates at a newly found vertex (001 eqs. 34-36, the geometry part).
+    fn arrive(&self, w: &VcmWeights, state: &mut SubPath, hit: &SurfaceHit, light_side: bool) {
+        let distance = hit.hit.t * state.ray.dir.length();
+        let with_distance = !light_side || state.path_length > 1 || state.finite_light;
+        let cos = hit.ng.dot(-state.ray.dir.normalize()).abs();
+        let arrival = w.arrive(&mut state.mis, distance, cos, with_distance);
+        state.deferred.arrive(arrival);
+    }
+
+    /// Continues a sub-path by sampling the BSDF (SmallVCM's SampleScattering; 001 eqs. 34-36,
+    /// the sampling part). `None` ends the path.
     fn scatter(
         &self,
         w: &VcmWeights,
@@ -273,15 +269,23 @@ impl<'a> VertexCm<'a> {
             state.throughput /= q;
         }
         let cos_out = bsdf.cos_theta(s.wi);
-        let merge_here = self.modes.merge_here(light_side, state.prev_surface);
-        w.scatter(
+        let here = self.modes.merge_leaving(light_side, state.prev_surface);
+        if !s.delta {
+            state.mis = state.mis_at(w, s.rev_pdf_w);
+        }
+        let ratio = w.scatter(
             &mut state.mis,
             cos_out,
             s.pdf_w,
             s.rev_pdf_w,
             s.delta,
-            merge_here,
+            (here == VmHere::Valid, state.density.0),
         );
+        state.deferred = if !s.delta && here == VmHere::Deferred {
+            Deferred::new(w, ratio, cos_out)
+        } else {
+            Deferred::NONE
+        };
         state.prev_surface = !s.delta;
         if !s.delta {
             state.specular = false;
@@ -295,24 +299,13 @@ impl<'a> VertexCm<'a> {
         Some(())
     }
 
-    /// Distance and cosine updates at a newly found vertex (SmallVCM; 001 eqs. 34-36 use the
-    /// reverse geometry factor).
-    fn arrive(&self, w: &VcmWeights, state: &mut SubPath, hit: &SurfaceHit, light_side: bool) {
-        let distance = hit.hit.t * state.ray.dir.length();
-        let with_distance = !light_side || state.path_length > 1 || state.finite_light;
-        let cos = hit.ng.dot(-state.ray.dir.normalize()).abs();
-        w.arrive(&mut state.mis, distance, cos, with_distance);
-    }
-
     /// Traces the light sub-path `index`; stores its vertices and returns its camera splats.
     fn trace_light_path(
         &self,
         w: &VcmWeights,
         iteration: u64,
         index: usize,
-        vertices: &mut Vec<LightVertex>,
-        splats: &mut Vec<(usize, Rgb)>,
-        stats: &mut IterationStats,
+        chunk: &mut LightChunk,
     ) {
         let mut rng = Rng::for_sample(
             self.ctx.options.seed,
@@ -325,32 +318,37 @@ impl<'a> VertexCm<'a> {
         };
         let max_length = self.ctx.max_path_length();
         loop {
-            stats.rays += 1;
+            chunk.stats.rays += 1;
             let Some(hit) = self.scene().intersect(&state.ray) else {
                 break;
             };
             let dir = state.ray.dir.normalize();
             self.arrive(w, &mut state, &hit, true);
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Importance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Importance) else {
                 break;
             };
-            w.drop_pending(&mut state.mis, !bsdf.is_delta());
+            state.deferred.keep_if(!bsdf.is_delta());
+            state.density = NO_DENSITY;
             if !bsdf.is_delta() {
+                state.density = self.density_at(w, hit.position, &mut state);
                 if self.modes.vc || self.modes.vm {
-                    vertices.push(LightVertex {
+                    chunk.vertices.push(LightVertex {
                         position: hit.position,
                         ng: hit.ng,
+                        ns: hit.ns,
+                        uv: hit.uv,
                         wo: -dir,
                         throughput: state.throughput,
                         material: hit.material,
                         path_length: state.path_length,
                         mis: state.mis,
+                        deferred: state.deferred,
+                        rho: state.density.0,
                         after_surface: state.prev_surface,
                     });
                 }
                 if self.modes.vc || self.modes.light_trace {
-                    self.connect_to_camera(w, &state, &hit, &bsdf, splats, stats);
+                    self.connect_to_camera(w, &state, &hit, &bsdf, chunk);
                 }
             }
             if state.path_length.saturating_add(2) > max_length {
@@ -365,6 +363,44 @@ impl<'a> VertexCm<'a> {
         }
     }
 
+    /// The light sub-paths of one iteration: fixed chunks of paths, in order.
+    fn light_pass(&self, w: &VcmWeights, iteration: u64, paths: usize) -> Vec<LightChunk> {
+        (0..paths)
+            .into_par_iter()
+            .step_by(LIGHT_CHUNK)
+            .map(|start| {
+                let mut chunk = LightChunk::default();
+                for index in start..(start + LIGHT_CHUNK).min(paths) {
+                    self.trace_light_path(w, iteration, index, &mut chunk);
+                    chunk.ends.push(chunk.vertices.len() as u32);
+                }
+                chunk
+            })
+            .collect()
+    }
+
+    /// A continued render starts with an empty density map: the light passes of the
+    /// iterations that filled it are traced again (their vertices depend only on the seed).
+    fn rebuild_density_map(&mut self, iteration: u64, paths: usize) {
+        loop {
+            let next = match &self.density {
+                Some(map) if map.is_filling() && u64::from(map.iterations()) < iteration => {
+                    u64::from(map.iterations())
+                }
+                _ => return,
+            };
+            let w = self.weights(next);
+            let positions: Vec<Vec3> = self
+                .light_pass(&w, next, paths)
+                .iter()
+                .flat_map(|chunk| chunk.vertices.iter().map(|v| v.position))
+                .collect();
+            if let Some(map) = &mut self.density {
+                map.insert(&positions);
+            }
+        }
+    }
+
     /// Connects a light vertex to the camera and splats it (t = 1; 001 eqs. 46-47).
     fn connect_to_camera(
         &self,
@@ -372,10 +408,12 @@ impl<'a> VertexCm<'a> {
         state: &SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
-        splats: &mut Vec<(usize, Rgb)>,
-        stats: &mut IterationStats,
+        chunk: &mut LightChunk,
     ) {
         let camera = &self.ctx.camera;
+        if self.too_short(state.path_length + 1) {
+            return;
+        }
         let Some((x, y)) = camera.raster(hit.position) else {
             return;
         };
@@ -392,29 +430,36 @@ impl<'a> VertexCm<'a> {
         let weight = if self.modes.light_trace {
             1.0
         } else {
-            // Merging at this vertex: `upg` needs its predecessor, `upg-camera` the camera as
-            // the neighbour the tentative rays would leave from, which cannot be.
-            let merge_here = match self.modes.merge {
-                Merge::Density => true,
-                Merge::UpgLight => state.prev_surface,
-                Merge::UpgCamera => false,
-            };
-            let eta = w.eta_if(merge_here, state.mis.d_vcm);
-            w.to_camera(&state.mis, eta, camera_pdf_a, eval.rev_pdf_w)
+            // Towards the eye lies the camera, which tentative rays cannot leave from.
+            let here = self
+                .modes
+                .gather
+                .merge_at(Neighbour::surface_if(state.prev_surface), Neighbour::Other);
+            let eta = w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0;
+            w.to_camera(
+                &state.mis_at(w, eval.rev_pdf_w),
+                eta,
+                camera_pdf_a,
+                eval.rev_pdf_w,
+            )
         };
         let contribution = state.throughput * eval.f * (weight * camera_pdf_a / w.light_paths);
-        stats.rays += 1;
+        chunk.stats.rays += 1;
         if !self
             .scene()
             .occluded(&Ray::spawn_to(hit.position, hit.ng, camera.position))
         {
-            splats.push((camera.pixel_index(x, y), contribution));
+            chunk.splats.push((camera.pixel_index(x, y), contribution));
         }
     }
 
     /// Emission reached by an eye sub-path: an area light at `hit`, or the sky when `hit` is
-    /// `None` (s = 0; 001 eqs. 42-43).
+    /// `None` (s = 0; 001 eqs. 42-43). No merge is gathered from a light point, so a deferred
+    /// one is not counted.
     fn emission(&self, w: &VcmWeights, state: &SubPath, hit: Option<&SurfaceHit>) -> Rgb {
+        if self.too_short(state.path_length) {
+            return Rgb::BLACK;
+        }
         let lights = &self.scene().lights;
         let dir = state.ray.dir.normalize();
         let Some((received, index)) = lights.received(dir, hit.map(|h| (h.light, h.ng))) else {
@@ -451,26 +496,21 @@ impl<'a> VertexCm<'a> {
         rng: &mut Rng,
         stats: &mut IterationStats,
     ) -> Rgb {
+        if self.too_short(state.path_length + 1) {
+            return Rgb::BLACK;
+        }
         let Some(ls) = LightSample::draw(self.scene(), hit, bsdf, rng) else {
             return Rgb::BLACK;
         };
-        // Merging here: `upg` would gather from the light point itself, which it does not.
-        let merge_here = match self.modes.merge {
-            Merge::Density => true,
-            Merge::UpgLight => false,
-            Merge::UpgCamera => state.prev_surface,
-        };
+        // Towards the light lies the light point, which tentative rays cannot leave from.
+        let here = self
+            .modes
+            .gather
+            .merge_at(Neighbour::Other, Neighbour::surface_if(state.prev_surface));
         let weight = w.light_sample(
-            &state.mis,
-            w.eta_if(merge_here, state.mis.d_vcm),
-            ls.eval.pdf_w,
-            ls.eval.rev_pdf_w,
-            ls.pdf_w(),
-            ls.il.direct_pdf_w,
-            ls.il.emission_pdf_w,
-            ls.cos_at_receiver,
-            ls.il.cos_at_light,
-            ls.light.is_delta(),
+            &state.mis_at(w, ls.eval.rev_pdf_w),
+            w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0,
+            &ls.pdfs(),
         );
         stats.rays += 1;
         if !ls.visible(self.scene(), hit) {
@@ -489,39 +529,48 @@ impl<'a> VertexCm<'a> {
         lv: &LightVertex,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let Some(light_bsdf) = self.bsdf_at(lv.material, lv.ng, lv.wo, TransportMode::Importance)
-        else {
+        if self.too_short(lv.path_length + state.path_length + 1) {
+            return Rgb::BLACK;
+        }
+        let Some(light_bsdf) = lv.bsdf(self.scene()) else {
             return Rgb::BLACK;
         };
         let Some(c) = Connection::new(bsdf, hit.position, &light_bsdf, lv.position) else {
             return Rgb::BLACK;
         };
-        // Area pdfs of each end as the other end samples it.
-        let (eye_pdf_a, light_pdf_a) = (c.to_pdf_a(), c.from_pdf_a());
+        let p: ConnectionPdfs = c.eye_to_light_pdfs();
         // Merging at either end: each end's neighbour across the connection is a non-delta
-        // surface vertex; `upg` also needs the light vertex's predecessor to be one, and
-        // `upg-camera` the eye vertex's. The gathering side's pdf of the merge vertex is the
-        // sub-path's own (its d^VCM) or, across the connection, the other end's.
-        let (light_eta, eye_eta) = match self.modes.merge {
-            Merge::Density => (w.vm_factor, w.vm_factor),
-            Merge::UpgLight => (
-                w.eta_if(lv.after_surface, lv.mis.d_vcm),
-                w.eta(w.mis(1.0 / light_pdf_a)),
-            ),
-            Merge::UpgCamera => (
-                w.eta(w.mis(1.0 / eye_pdf_a)),
-                w.eta_if(state.prev_surface, state.mis.d_vcm),
-            ),
-        };
+        // surface vertex. The gathering side's pdf of the merge vertex is the end's own sub-path
+        // (its d^VCM) or, when the other side gathers, the other end's across the connection.
+        let gather = self.modes.gather;
+        let light_here =
+            gather.merge_at(Neighbour::surface_if(lv.after_surface), Neighbour::Surface);
+        let eye_here = gather.merge_at(
+            Neighbour::Surface,
+            Neighbour::surface_if(state.prev_surface),
+        );
+        let light_eta = w.eta_if(
+            light_here == VmHere::Valid,
+            if gather == Gather::UpgCamera {
+                w.mis(1.0 / p.light_pdf_a)
+            } else {
+                lv.mis.d_vcm
+            },
+        ) * lv.rho;
+        let eye_eta = w.eta_if(
+            eye_here == VmHere::Valid,
+            if gather == Gather::UpgLight {
+                w.mis(1.0 / p.eye_pdf_a)
+            } else {
+                state.mis.d_vcm
+            },
+        ) * state.density.0;
         let weight = w.connect(
-            &lv.mis,
+            &lv.mis_at(w, p.light_rev_pdf_w),
             light_eta,
-            &state.mis,
+            &state.mis_at(w, p.eye_rev_pdf_w),
             eye_eta,
-            c.to_eval.rev_pdf_w,
-            c.from_eval.rev_pdf_w,
-            light_pdf_a,
-            eye_pdf_a,
+            &p,
         );
         stats.rays += 1;
         if self.scene().occluded(&Ray::spawn_between(
@@ -535,8 +584,8 @@ impl<'a> VertexCm<'a> {
         c.value * lv.throughput * weight
     }
 
-    /// Merges an eye vertex with the light vertices around it (001 eqs. 38-39), not yet
-    /// normalised by 1 / (pi r^2 n_VM).
+    /// Merges an eye vertex with the light vertices around it by density estimation (001
+    /// eqs. 38-39), not yet normalised by 1 / (pi r^2 n_VM).
     fn merge(
         &self,
         w: &VcmWeights,
@@ -550,7 +599,8 @@ impl<'a> VertexCm<'a> {
         let mut sum = Rgb::BLACK;
         grid.query(hit.position, |i, _| {
             let lv = &vertices[i];
-            if lv.path_length.saturating_add(state.path_length) > max_length {
+            let segments = lv.path_length.saturating_add(state.path_length);
+            if segments > max_length || self.too_short(segments) {
                 return;
             }
             let eval = bsdf.eval(lv.wo);
@@ -561,201 +611,35 @@ impl<'a> VertexCm<'a> {
             let weight = if self.modes.ppm {
                 1.0
             } else {
-                w.merge(&lv.mis, &state.mis, eval.pdf_w, eval.rev_pdf_w, w.vm_factor)
+                w.merge(
+                    &lv.mis,
+                    &state.mis,
+                    (eval.pdf_w, eval.rev_pdf_w),
+                    w.vm_factor,
+                    state.density,
+                )
             };
             sum += eval.f * lv.throughput * weight;
         });
         sum
     }
 
-    /// `upg`: gathers the light vertices within r of the eye vertex `hit` whose predecessor Q is
-    /// a non-delta surface vertex, and for each connects Q to the eye vertex explicitly (000
-    /// eq. 2.67), the tentative rays from Q estimating 1/p_acc (000 eq. 2.65).
-    #[allow(clippy::too_many_arguments)]
-    fn merge_upg_light<'s>(
-        &'s self,
-        w: &VcmWeights,
-        state: &SubPath,
-        bsdf: &Bsdf,
-        hit: &SurfaceHit,
-        grid: &HashGrid,
-        vertices: &[LightVertex],
-        tentative: &mut Tentative<'s>,
-        stats: &mut IterationStats,
-    ) -> Rgb {
-        let max_length = self.ctx.max_path_length();
-        grid.query(hit.position, |i, _| {
-            let photon = &vertices[i];
-            if !photon.after_surface {
-                return;
-            }
-            let q = &vertices[i - 1];
-            if q.path_length + 1 + state.path_length > max_length {
-                return;
-            }
-            let Some(q_bsdf) = self.bsdf_at(q.material, q.ng, q.wo, TransportMode::Importance)
-            else {
-                return;
-            };
-            let Some(link) = self.link(
-                (&q_bsdf, q.position, q.ng),
-                (bsdf, hit.position, hit.ng),
-                stats,
-            ) else {
-                return;
-            };
-            let Ok(bound) = AngularBound::new(q.position, q.ng, &q_bsdf, hit.position, w.radius)
-            else {
-                return;
-            };
-            // The light sub-path's quantities as they would be at the eye vertex.
-            let merge_at_q = self.modes.merge_here(true, q.after_surface);
-            let light = carry(w, &link, q.mis, merge_at_q);
-            let weight = w.merge(
-                &light,
-                &state.mis,
-                link.to_eval.pdf_w,
-                link.to_eval.rev_pdf_w,
-                w.eta(light.d_vcm),
-            );
-            let roulette = self.roulette_probability(&q_bsdf, q.path_length);
-            tentative.push(bound, q.throughput * link.value * (weight / roulette));
-        });
-        self.estimate_merges(tentative, stats)
-    }
-
-    /// `upg-camera`: gathers the light vertices within r of the eye vertex the eye sub-path just
-    /// reached, and connects each to the previous eye vertex `prev` explicitly, the tentative
-    /// rays from `prev` estimating 1/p_acc (000 sec. 2.4.3, UPG*).
-    #[allow(clippy::too_many_arguments)]
-    fn merge_upg_camera<'s>(
-        &'s self,
-        w: &VcmWeights,
-        prev: &EyeVertex<'s>,
-        position: Vec3,
-        grid: &HashGrid,
-        vertices: &[LightVertex],
-        tentative: &mut Tentative<'s>,
-        stats: &mut IterationStats,
-    ) -> Rgb {
-        let max_length = self.ctx.max_path_length();
-        grid.query(position, |i, _| {
-            let photon = &vertices[i];
-            if photon.path_length + 1 + prev.path_length > max_length {
-                return;
-            }
-            let Some(p_bsdf) = self.bsdf_at(
-                photon.material,
-                photon.ng,
-                photon.wo,
-                TransportMode::Importance,
-            ) else {
-                return;
-            };
-            let Some(link) = self.link(
-                (&prev.bsdf, prev.hit.position, prev.hit.ng),
-                (&p_bsdf, photon.position, photon.ng),
-                stats,
-            ) else {
-                return;
-            };
-            let Ok(bound) = AngularBound::new(
-                prev.hit.position,
-                prev.hit.ng,
-                &prev.bsdf,
-                photon.position,
-                w.radius,
-            ) else {
-                return;
-            };
-            // The eye sub-path's quantities as they would be at the light vertex.
-            let merge_at_prev = self.modes.merge_here(false, prev.prev_surface);
-            let eye = carry(w, &link, prev.mis, merge_at_prev);
-            // At the merge vertex the eye side samples towards the light vertex's predecessor:
-            // the photon's BSDF pdfs, seen the other way round.
-            let weight = w.merge(
-                &photon.mis,
-                &eye,
-                link.to_eval.rev_pdf_w,
-                link.to_eval.pdf_w,
-                w.eta(eye.d_vcm),
-            );
-            let roulette = self.roulette_probability(&prev.bsdf, prev.path_length);
-            tentative.push(
-                bound,
-                prev.throughput * photon.throughput * link.value * (weight / roulette),
-            );
-        });
-        self.estimate_merges(tentative, stats)
-    }
-
-    fn bsdf_at(&self, material: u32, ng: Vec3, wo: Vec3, mode: TransportMode) -> Option<Bsdf<'_>> {
-        Bsdf::new(&self.scene().material(material).kind, ng, wo, mode)
-    }
-
-    /// The probability that Russian roulette let a sub-path go on from a vertex.
-    fn roulette_probability(&self, bsdf: &Bsdf, path_length: u32) -> f32 {
-        if path_length >= self.ctx.options.roulette {
-            bsdf.continuation_probability()
-        } else {
-            1.0
-        }
-    }
-
-    /// The explicit connection of a UPG merge between two vertices (BSDF, position, geometric
-    /// normal): both BSDFs, the geometry term and the visibility (000 eq. 2.67).
-    fn link(
-        &self,
-        (from, from_position, from_ng): (&Bsdf, Vec3, Vec3),
-        (to, to_position, to_ng): (&Bsdf, Vec3, Vec3),
-        stats: &mut IterationStats,
-    ) -> Option<Connection> {
-        Connection::new(from, from_position, to, to_position).filter(|_| {
-            stats.rays += 1;
-            !self.scene().occluded(&Ray::spawn_between(
-                from_position,
-                from_ng,
-                to_position,
-                to_ng,
-            ))
-        })
-    }
-
-    /// Estimates 1/p_acc for the merges of one gather, together so that packets can take lanes
-    /// from all of them, and returns the sum of their contributions. A capped estimate drops its
-    /// merge and is counted as capped; an unreachable target drops its merge too.
-    fn estimate_merges(&self, tentative: &mut Tentative, stats: &mut IterationStats) -> Rgb {
-        // `upg` gathers light vertices, which lie on non-delta surfaces only; `upg-camera`
-        // gathers at wherever the eye sub-path lands.
-        match self.modes.merge {
-            Merge::UpgLight => {
-                tentative.estimate(&self.estimator, &StoredVerticesOnly(self.scene()), stats)
-            }
-            _ => tentative.estimate(&self.estimator, self.scene(), stats),
-        }
-    }
-
     /// Traces the eye sub-path of one pixel and returns its estimate.
-    #[allow(clippy::too_many_arguments)]
-    fn trace_eye_path(
-        &self,
-        w: &VcmWeights,
-        iteration: u64,
-        pixel: usize,
-        light_path: &[LightVertex],
-        grid: Option<&HashGrid>,
-        vertices: &[LightVertex],
-        stats: &mut IterationStats,
-    ) -> Rgb {
+    fn trace_eye_path(&self, pass: &EyePass, pixel: usize, stats: &mut IterationStats) -> Rgb {
+        let w = &pass.w;
         let camera = &self.ctx.camera;
         let seed = self.ctx.options.seed;
-        let mut rng = Rng::for_sample(seed, iteration, pixel as u64, Stream::Eye);
-        let mut tentative = Tentative::new(seed, iteration, pixel);
+        let light_path = pass.light.for_pixel(pixel);
+        let gathered = pass.grid.map(|grid| Gathered {
+            vertices: &pass.light.vertices,
+            grid,
+        });
+        let mut rng = Rng::for_sample(seed, pass.iteration, pixel as u64, Stream::Eye);
+        let mut tentative = Tentative::new(seed, pass.iteration, pixel);
         let width = camera.width as usize;
         let [jx, jy] = rng.next_2d();
         let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
         let camera_pdf_w = camera.pdf_w(ray.dir);
-        // 001 eq. (31)-(33) for the eye: p_0^connect = p_0^trace, d_vc = d_vm = 0.
         let mut state = SubPath {
             ray,
             throughput: Rgb::WHITE,
@@ -764,6 +648,8 @@ impl<'a> VertexCm<'a> {
             specular: true,
             prev_surface: false,
             mis: w.camera_origin(camera_pdf_w),
+            deferred: Deferred::NONE,
+            density: NO_DENSITY,
         };
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
@@ -778,28 +664,24 @@ impl<'a> VertexCm<'a> {
             self.arrive(w, &mut state, &hit, false);
             // `upg-camera` merges wherever the sub-path lands: what is merged is the light
             // vertex, reached from the previous eye vertex.
-            if let (Some(grid), Some(prev)) = (grid, prev.as_ref()) {
-                color += self.merge_upg_camera(
-                    w,
-                    prev,
-                    hit.position,
-                    grid,
-                    vertices,
-                    &mut tentative,
-                    stats,
-                ) * (1.0 / w.light_paths);
+            if let (Some(upg), Some(gathered), Some(prev)) =
+                (&self.upg_merges, gathered, prev.as_ref())
+            {
+                color += upg.from_camera(w, prev, hit.position, gathered, &mut tentative, stats)
+                    * (1.0 / w.light_paths);
             }
             color += state.throughput * self.emission(w, &state, Some(&hit));
             // Light tracing renders everything else from the light side.
             if self.modes.light_trace || state.path_length >= max_length {
                 break;
             }
-            let material = &self.scene().material(hit.material).kind;
-            let Some(bsdf) = Bsdf::new(material, hit.ng, -dir, TransportMode::Radiance) else {
+            let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Radiance) else {
                 break;
             };
-            w.drop_pending(&mut state.mis, !bsdf.is_delta());
+            state.deferred.keep_if(!bsdf.is_delta());
+            state.density = NO_DENSITY;
             if !bsdf.is_delta() {
+                state.density = self.density_at(w, hit.position, &mut state);
                 if self.modes.vc {
                     color += state.throughput
                         * self.light_sampling(w, &state, &hit, &bsdf, &mut rng, stats);
@@ -810,32 +692,32 @@ impl<'a> VertexCm<'a> {
                         color += state.throughput * self.connect(w, &state, &hit, &bsdf, lv, stats);
                     }
                 }
-                match (grid, self.modes.merge) {
-                    (Some(grid), Merge::Density) => {
-                        let merged = self.merge(w, &state, &bsdf, &hit, grid, vertices);
+                match (gathered, self.modes.gather) {
+                    (Some(gathered), Gather::Density) => {
+                        let merged =
+                            self.merge(w, &state, &bsdf, &hit, gathered.grid, gathered.vertices);
                         color += state.throughput * merged * w.vm_normalization;
                         if self.modes.ppm {
                             break;
                         }
                     }
-                    (Some(grid), Merge::UpgLight) => {
-                        let merged = self.merge_upg_light(
-                            w,
-                            &state,
-                            &bsdf,
-                            &hit,
-                            grid,
-                            vertices,
-                            &mut tentative,
-                            stats,
-                        );
-                        color += state.throughput * merged * (1.0 / w.light_paths);
+                    (Some(gathered), Gather::UpgLight) => {
+                        if let Some(upg) = &self.upg_merges {
+                            let merged = upg.from_light(
+                                w,
+                                (&state, &hit, &bsdf),
+                                gathered,
+                                &mut tentative,
+                                stats,
+                            );
+                            color += state.throughput * merged * (1.0 / w.light_paths);
+                        }
                     }
                     _ => {}
                 }
             }
             let before =
-                (!bsdf.is_delta() && self.modes.merge == Merge::UpgCamera).then(|| EyeVertex {
+                (!bsdf.is_delta() && self.modes.gather == Gather::UpgCamera).then(|| EyeVertex {
                     hit,
                     bsdf: bsdf.clone(),
                     throughput: state.throughput,
@@ -855,168 +737,52 @@ impl<'a> VertexCm<'a> {
     }
 }
 
-/// The MIS quantities of the sub-path that ends at the first vertex of `c` (`at_from`),
-/// carried across it to the second (001 eqs. 34-36).
-fn carry(w: &VcmWeights, c: &Connection, at_from: VcmVertex, merge_at_from: VmHere) -> VcmVertex {
-    let mut v = at_from;
-    w.scatter(
-        &mut v,
-        c.cos_from,
-        c.from_eval.pdf_w,
-        c.from_eval.rev_pdf_w,
-        false,
-        merge_at_from,
-    );
-    w.arrive(&mut v, c.distance, c.cos_to, true);
-    v
-}
-
-/// The UPG merges of one eye sub-path awaiting their 1/p_acc: each merge's bound, its own
-/// random stream (so an estimate does not depend on how many numbers the packets before it
-/// drew) and its contribution without the 1/p_acc factor. Reused from gather to gather.
-struct Tentative<'s> {
-    seed: u64,
-    iteration: u64,
-    base: u64,
-    merges: u64,
-    bounds: Vec<AngularBound<'s>>,
-    rngs: Vec<Rng>,
-    values: Vec<Rgb>,
-}
-
-impl<'s> Tentative<'s> {
-    fn new(seed: u64, iteration: u64, pixel: usize) -> Self {
-        Tentative {
-            seed,
-            iteration,
-            base: (pixel as u64) << 24,
-            merges: 0,
-            bounds: Vec::new(),
-            rngs: Vec::new(),
-            values: Vec::new(),
-        }
-    }
-
-    fn push(&mut self, bound: AngularBound<'s>, value: Rgb) {
-        self.merges += 1;
-        self.rngs.push(Rng::for_sample(
-            self.seed,
-            self.iteration,
-            self.base + self.merges,
-            Stream::Tentative,
-        ));
-        self.bounds.push(bound);
-        self.values.push(value);
-    }
-
-    /// Estimates every pending merge, empties the list and returns the merges' sum.
-    fn estimate<T: TentativeTracer + ?Sized>(
-        &mut self,
-        estimator: &Estimator,
-        tracer: &T,
-        stats: &mut IterationStats,
-    ) -> Rgb {
-        let values = &mut self.values;
-        estimator.estimate_all(tracer, &self.bounds, &mut self.rngs, |i, estimate| {
-            stats.upg.merges += 1;
-            stats.upg.trials += estimate.trials as u64;
-            stats.upg.tentative_rays += estimate.rays as u64;
-            stats.rays += estimate.rays as u64;
-            values[i] = match estimate.outcome {
-                Outcome::Estimate(inv_p_acc) => values[i] * inv_p_acc,
-                Outcome::Capped => {
-                    stats.upg.capped += 1;
-                    Rgb::BLACK
-                }
-                Outcome::Unreachable => Rgb::BLACK,
-            };
-        });
-        // Summed in gathering order: packets finish merges in another order than single rays,
-        // and the image must not depend on it.
-        let sum = values.iter().fold(Rgb::BLACK, |sum, &v| sum + v);
-        self.bounds.clear();
-        self.rngs.clear();
-        self.values.clear();
-        sum
-    }
-}
-
 impl Integrator for VertexCm<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
+        self.rebuild_density_map(iteration, frame.len());
         let w = self.weights(iteration);
-        let paths = frame.len();
-        // Light pass: fixed chunks of paths, concatenated in order.
-        let chunks: Vec<LightChunk> = (0..paths)
-            .into_par_iter()
-            .step_by(LIGHT_CHUNK)
-            .map(|start| {
-                let mut chunk = LightChunk::default();
-                for index in start..(start + LIGHT_CHUNK).min(paths) {
-                    self.trace_light_path(
-                        &w,
-                        iteration,
-                        index,
-                        &mut chunk.vertices,
-                        &mut chunk.splats,
-                        &mut chunk.stats,
-                    );
-                    chunk.ends.push(chunk.vertices.len() as u32);
-                }
-                chunk
-            })
-            .collect();
-        let mut vertices = Vec::new();
-        let mut path_ends = Vec::with_capacity(paths + 1);
-        path_ends.push(0usize);
+        let paths = self.light_paths();
+        let chunks = self.light_pass(&w, iteration, paths);
         let mut stats = IterationStats::default();
-        for LightChunk {
-            vertices: chunk_vertices,
-            ends,
-            splats,
-            stats: chunk_stats,
-        } in chunks
-        {
-            let base = vertices.len();
-            path_ends.extend(ends.iter().map(|&e| base + e as usize));
-            vertices.extend(chunk_vertices);
-            for (pixel, value) in splats {
-                add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
-            }
-            stats.rays += chunk_stats.rays;
-            stats.dropped_samples += chunk_stats.dropped_samples;
-        }
-        self.stored_vertices = vertices.len();
-        let grid = self.modes.vm.then(|| {
-            let positions: Vec<Vec3> = vertices.iter().map(|v| v.position).collect();
-            HashGrid::build(&positions, w.radius)
-        });
+        let light = LightPaths::concatenate(chunks, frame, &mut stats);
+        self.stored_vertices = light.vertices.len();
+        // The grid's and the density map's input.
+        let positions: Vec<Vec3> = if self.modes.vm {
+            light.vertices.iter().map(|v| v.position).collect()
+        } else {
+            Vec::new()
+        };
+        let grid = self.modes.vm.then(|| HashGrid::build(&positions, w.radius));
         // Eye pass: one sub-path per pixel, each connecting to its own light sub-path.
+        let pass = EyePass {
+            w,
+            iteration,
+            light: &light,
+            grid: grid.as_ref(),
+        };
         let eye_stats = frame
             .par_iter_mut()
             .enumerate()
             .map(|(pixel, value)| {
                 let mut stats = IterationStats::default();
-                let light_path = &vertices[path_ends[pixel]..path_ends[pixel + 1]];
-                let color = self.trace_eye_path(
-                    &w,
-                    iteration,
-                    pixel,
-                    light_path,
-                    grid.as_ref(),
-                    &vertices,
-                    &mut stats,
-                );
+                let color = self.trace_eye_path(&pass, pixel, &mut stats);
                 add_sample(value, color, &mut stats.dropped_samples);
                 stats
             })
             .reduce(IterationStats::default, |a, b| a + b);
         let stats = stats + eye_stats;
         self.upg = self.upg + stats.upg;
+        // Filled after the eye pass, so every technique of this iteration saw the same map.
+        if let Some(map) = &mut self.density {
+            if map.is_filling() && u64::from(map.iterations()) == iteration {
+                map.insert(&positions);
+            }
+        }
         stats
     }
 
     fn statistics(&self) -> Vec<(String, String)> {
-        let paths = self.ctx.camera.pixel_count().max(1);
+        let paths = self.light_paths().max(1);
         let mut stats = vec![
             (
                 "light_vertices_per_path".into(),
@@ -1031,8 +797,11 @@ impl Integrator for VertexCm<'_> {
             stats.push(("base_radius".into(), self.base_radius.to_string()));
             stats.push(("alpha".into(), self.alpha.to_string()));
         }
-        if self.modes.merge != Merge::Density {
+        if self.modes.gather != Gather::Density {
             stats.extend(self.upg.statistics());
+        }
+        if let Some(map) = &self.density {
+            stats.extend(map.statistics());
         }
         stats
     }

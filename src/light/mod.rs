@@ -1,4 +1,5 @@
-//! Lights: emissive triangles and spheres (area lights), point, directional and the sky.
+//! Lights: emissive triangles and spheres (area lights), point, directional and the sky (a
+//! gradient, or an environment image: `env.rs`).
 //!
 //! Every light answers the three questions the integrators ask (SmallVCM's interface, 001
 //! sec. 5.1 for the infinite ones):
@@ -16,9 +17,21 @@ use crate::bsdf::Material;
 use crate::color::Rgb;
 use crate::frame::Frame;
 use crate::sampling::{self, Distribution1D};
-use crate::scene::SkyDesc;
 use glam::Vec3;
 use std::f32::consts::{FRAC_1_PI, PI};
+use std::sync::Arc;
+
+mod env;
+
+pub use env::{EnvLight, EnvMapDesc};
+
+/// Background radiance L(w) = horizon + (zenith - horizon) * max(0, w . up).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SkyDesc {
+    pub horizon: Rgb,
+    pub zenith: Rgb,
+    pub up: Vec3,
+}
 
 /// Marks a primitive that emits nothing in the primitive-to-light tables.
 const NO_LIGHT: u32 = u32::MAX;
@@ -49,6 +62,11 @@ pub enum Light {
     },
     /// The gradient sky, an infinite light around the scene's bounding sphere.
     Sky { sky: SkyDesc, scene: (Vec3, f32) },
+    /// An environment image as the sky, likewise infinite.
+    Env {
+        env: Arc<EnvLight>,
+        scene: (Vec3, f32),
+    },
 }
 
 /// Light seen from a receiver (next-event estimation).
@@ -115,6 +133,18 @@ pub struct Received {
 }
 
 impl Light {
+    /// What kind of light it is, in words.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Light::Triangle { .. } => "an emissive triangle",
+            Light::Sphere { .. } => "an emissive sphere",
+            Light::Point { .. } => "a point light",
+            Light::Directional { .. } => "a directional light",
+            Light::Sky { .. } => "the sky",
+            Light::Env { .. } => "the environment image",
+        }
+    }
+
     /// A delta light cannot be hit by a ray (point, directional).
     pub fn is_delta(&self) -> bool {
         matches!(self, Light::Point { .. } | Light::Directional { .. })
@@ -122,7 +152,10 @@ impl Light {
 
     /// A finite light has a position (area, point); directional and sky lights do not.
     pub fn is_finite(&self) -> bool {
-        !matches!(self, Light::Directional { .. } | Light::Sky { .. })
+        !matches!(
+            self,
+            Light::Directional { .. } | Light::Sky { .. } | Light::Env { .. }
+        )
     }
 
     /// Total emitted power (approximate for the sky), for light selection.
@@ -140,6 +173,8 @@ impl Light {
                 let mean = 0.5 * (sky.horizon + (sky.horizon + sky.zenith) * 0.5);
                 mean.average() * PI * PI * scene.1 * scene.1
             }
+            // The same measure: the mean radiance over the sphere, times pi, times the disk.
+            Light::Env { env, scene } => env.integral() / (4.0 * PI) * PI * PI * scene.1 * scene.1,
         }
     }
 
@@ -226,6 +261,19 @@ impl Light {
                     cos_at_light: 1.0,
                 })
             }
+            Light::Env { ref env, scene } => {
+                let (dir, radiance, direct_pdf_w) = env.sample(u)?;
+                Some(Illumination {
+                    dir_to_light: dir,
+                    distance: f32::INFINITY,
+                    position: receiver + dir * 2.0 * scene.1,
+                    normal: -dir,
+                    radiance,
+                    direct_pdf_w,
+                    emission_pdf_w: direct_pdf_w * disk_pdf(scene.1),
+                    cos_at_light: 1.0,
+                })
+            }
         }
     }
 
@@ -276,6 +324,20 @@ impl Light {
                     dir,
                     normal: dir,
                     energy: sky_radiance(&sky, to_sky),
+                    direct_pdf_a: direct_pdf_w,
+                    emission_pdf_w: direct_pdf_w * disk_pdf(scene.1),
+                    cos_at_light: 1.0,
+                })
+            }
+            Light::Env { ref env, scene } => {
+                // 001 sec. 5.1, as for the gradient sky, the direction drawn from the image.
+                let (to_sky, radiance, direct_pdf_w) = env.sample(u_dir)?;
+                let dir = -to_sky;
+                Some(Emission {
+                    position: disk_origin(scene, dir, u_pos),
+                    dir,
+                    normal: dir,
+                    energy: radiance,
                     direct_pdf_a: direct_pdf_w,
                     emission_pdf_w: direct_pdf_w * disk_pdf(scene.1),
                     cos_at_light: 1.0,
@@ -387,7 +449,9 @@ pub struct Lights {
 }
 
 impl Lights {
-    /// Collects the emissive triangles and spheres, the explicit lights and the sky.
+    /// Collects the emissive triangles and spheres, the explicit lights and the sky: the
+    /// environment image `env` when there is one, else the gradient `sky`.
+    #[allow(clippy::too_many_arguments)]
     pub fn new(
         geometry: &Geometry,
         triangle_materials: &[u32],
@@ -395,6 +459,7 @@ impl Lights {
         materials: &[Material],
         explicit: Vec<Light>,
         sky: Option<SkyDesc>,
+        env: Option<EnvMapDesc>,
         scene: (Vec3, f32),
     ) -> Self {
         let mut lights = Vec::new();
@@ -446,12 +511,19 @@ impl Lights {
                 other => other,
             });
         }
-        let sky_index = sky
-            .filter(|s| !(s.horizon.is_black() && s.zenith.is_black()))
-            .map(|sky| {
-                lights.push(Light::Sky { sky, scene });
-                lights.len() as u32 - 1
-            });
+        let sky_light = match env {
+            Some(desc) => EnvLight::new(&desc).map(|env| Light::Env {
+                env: Arc::new(env),
+                scene,
+            }),
+            None => sky
+                .filter(|s| !(s.horizon.is_black() && s.zenith.is_black()))
+                .map(|sky| Light::Sky { sky, scene }),
+        };
+        let sky_index = sky_light.map(|light| {
+            lights.push(light);
+            lights.len() as u32 - 1
+        });
         let selection = Distribution1D::new(lights.iter().map(Light::power).collect());
         Lights {
             lights,
@@ -464,6 +536,21 @@ impl Lights {
 
     pub fn is_empty(&self) -> bool {
         self.selection.is_none()
+    }
+
+    /// Why light selection is impossible although there are lights: the first light whose
+    /// power is not a finite number (the selection's sum is f64 and does not overflow).
+    pub fn power_overflow(&self) -> Option<String> {
+        let (i, light) = self
+            .lights
+            .iter()
+            .enumerate()
+            .find(|(_, l)| !l.power().is_finite())?;
+        Some(format!(
+            "light {i} ({}) emits {} W",
+            light.kind(),
+            light.power()
+        ))
     }
 
     pub fn len(&self) -> usize {
@@ -519,14 +606,25 @@ impl Lights {
 
     /// What a ray leaving the scene along the unit `dir` receives from the sky.
     pub fn background(&self, dir: Vec3) -> Option<Received> {
-        let Light::Sky { sky, scene } = self.get(self.sky?) else {
-            return None;
+        let (radiance, direct_pdf_a, scene) = match self.get(self.sky?) {
+            Light::Sky { sky, scene } => {
+                (sky_radiance(sky, dir), sampling::UNIFORM_SPHERE_PDF, scene)
+            }
+            Light::Env { env, scene } => (env.radiance(dir), env.pdf_w(dir), scene),
+            _ => return None,
         };
-        let direct_pdf_a = sampling::UNIFORM_SPHERE_PDF;
         Some(Received {
-            radiance: sky_radiance(sky, dir),
+            radiance,
             direct_pdf_a,
             emission_pdf_w: direct_pdf_a * disk_pdf(scene.1),
         })
+    }
+
+    /// Bytes held by the environment light's sampling distribution (zero without one).
+    pub fn env_distribution_bytes(&self) -> usize {
+        match self.sky.map(|i| self.get(i)) {
+            Some(Light::Env { env, .. }) => env.distribution_bytes(),
+            _ => 0,
+        }
     }
 }

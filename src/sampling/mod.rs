@@ -4,6 +4,6 @@ mod distribution;
 mod rng;
 mod warp;
 
-pub use distribution::Distribution1D;
+pub use distribution::{Distribution1D, Distribution2D};
 pub use rng::{Rng, Stream};
 pub use warp::*;

@@ -12,8 +12,21 @@ pub struct CameraDesc {
     pub position: Vec3,
     pub look_at: Vec3,
     pub up: Vec3,
-    /// Vertical field of view in degrees.
+    /// Field of view in degrees, across the image axis `fov_axis` names.
     pub fov_deg: f32,
+    pub fov_axis: FovAxis,
+    /// Mirrors the image left to right: for camera transforms of the other handedness (pbrt
+    /// puts camera-space +x on the right, which is `up x forward`, where vmerge puts
+    /// `forward x up`).
+    pub mirrored: bool,
+}
+
+/// Which image axis a camera's field of view spans.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FovAxis {
+    Vertical,
+    /// The shorter of the two (pbrt's rule).
+    Shorter,
 }
 
 /// A pinhole camera at a given resolution.
@@ -33,7 +46,12 @@ impl Camera {
         let forward = (desc.look_at - desc.position).normalize();
         let right = forward.cross(desc.up).normalize();
         let up = right.cross(forward);
+        let right = if desc.mirrored { -right } else { right };
         let tan_half = (desc.fov_deg.to_radians() * 0.5).tan();
+        let span = match desc.fov_axis {
+            FovAxis::Vertical => height,
+            FovAxis::Shorter => width.min(height),
+        };
         Camera {
             position: desc.position,
             frame: Frame {
@@ -43,7 +61,7 @@ impl Camera {
             },
             width,
             height,
-            image_plane_dist: height as f32 / (2.0 * tan_half),
+            image_plane_dist: span as f32 / (2.0 * tan_half),
         }
     }
 
@@ -108,6 +126,8 @@ mod tests {
             look_at: Vec3::new(0.0, 1.0, 0.0),
             up: Vec3::Y,
             fov_deg: 40.0,
+            fov_axis: FovAxis::Vertical,
+            mirrored: false,
         };
         let cam = Camera::new(&desc, 64, 48);
         for (x, y) in [(0.5, 0.5), (10.25, 40.75), (63.9, 0.1), (32.0, 24.0)] {

@@ -1,23 +1,30 @@
 use crate::accel::AccelError;
+use crate::files::FileError;
 use std::path::PathBuf;
 use thiserror::Error;
 
 /// Everything that can be wrong with a scene. Each message names the file and the entry.
 #[derive(Debug, Error)]
 pub enum SceneError {
-    #[error("{file}: cannot read")]
-    Io {
-        file: PathBuf,
-        source: std::io::Error,
-    },
+    #[error(transparent)]
+    File(#[from] FileError),
     #[error("{file}: {message}")]
     Parse { file: PathBuf, message: String },
+    /// A problem at a line of a pbrt scene file.
+    #[error("{file}:{line}: {message}")]
+    At {
+        file: PathBuf,
+        line: u32,
+        message: String,
+    },
     #[error("{file}: {entry}: {message}")]
     Invalid {
         file: PathBuf,
         entry: String,
         message: String,
     },
+    #[error("{file}: the lights' power overflows f32: {message}; scale the emission down")]
+    LightPower { file: PathBuf, message: String },
     #[error("{file}: the scene has no geometry")]
     NoGeometry { file: PathBuf },
     #[error("{file}: the scene has no lights (no emissive material, [[light]] or sky)")]

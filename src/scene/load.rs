@@ -1,24 +1,44 @@
 //! The TOML scene file (DESIGN.md "Scene file") and its OBJ/MTL meshes.
 //!
 //! Everything is validated before anything is built: each problem is one [`SceneError`] naming
-//! the file and the entry. Only geometric normals are used; OBJ shading normals are ignored.
+//! the file and the entry. OBJ `vn` normals become shading normals (unless turned off per mesh
+//! or for the whole load), `vt` texture coordinates; MTL `map_Kd` / `map_Ks` and the tables'
+//! `texture` / `ks_texture` name image textures, decoded once per file.
 
-use super::{CameraDesc, RenderDefaults, Scene, SceneError, SceneParts, SkyDesc};
+use super::wavefront;
+use super::{
+    CameraDesc, FovAxis, MaterialTextures, MeshShading, RenderDefaults, Scene, SceneError,
+    SceneParts, MAX_COORDINATE,
+};
 use crate::accel::{AccelKind, Geometry, Sphere};
 use crate::bsdf::{Material, MaterialKind};
 use crate::color::Rgb;
+use crate::files::{self, Kind};
 use crate::light::Light;
-use glam::{Mat3, Vec3};
+use crate::light::{EnvMapDesc, SkyDesc};
+use crate::options::OptionName;
+use crate::texture::{self, Texture};
+use glam::{Mat3, Vec2, Vec3};
 use serde::Deserialize;
 use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// The camera's vertical field of view, in degrees: narrower makes the image plane so far
+/// that rays lose their direction in f32, wider so near that pixels lose their size.
+const MIN_FOV: f32 = 0.01;
+const MAX_FOV: f32 = 179.0;
 
 #[derive(Clone, Copy, Debug)]
 pub struct LoadOptions {
     pub accel: AccelKind,
-    /// Clamp Phong materials with kd + ks > 1 (with a warning) instead of rejecting them.
+    /// Clamp Phong materials with kd + ks > 1 (with a warning) instead of rejecting them, and
+    /// use a material's constant colour (with a warning) where its texture file is missing.
     pub lenient: bool,
+    /// Use the meshes' vertex normals as shading normals (each mesh can still turn them off);
+    /// `false` renders every triangle flat, as if the files had none.
+    pub shading_normals: bool,
 }
 
 #[derive(Deserialize)]
@@ -50,10 +70,13 @@ struct RenderTable {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SkyTable {
-    horizon: [f32; 3],
-    zenith: [f32; 3],
-    #[serde(default = "default_up")]
-    up: [f32; 3],
+    horizon: Option<[f32; 3]>,
+    zenith: Option<[f32; 3]>,
+    up: Option<[f32; 3]>,
+    /// An equirectangular environment image instead of the gradient.
+    image: Option<PathBuf>,
+    scale: Option<f32>,
+    rotate_deg: Option<[f32; 3]>,
 }
 
 fn default_up() -> [f32; 3] {
@@ -77,6 +100,12 @@ struct MeshTable {
     file: PathBuf,
     transform: Option<TransformTable>,
     material: Option<String>,
+    #[serde(default = "yes")]
+    shading_normals: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 #[derive(Deserialize)]
@@ -112,6 +141,10 @@ struct MaterialTable {
     exponent: Option<f32>,
     ior: Option<f32>,
     emission: Option<[f32; 3]>,
+    /// Image for kd, relative to the scene file.
+    texture: Option<PathBuf>,
+    /// Image for Phong's ks.
+    ks_texture: Option<PathBuf>,
 }
 
 #[derive(Deserialize)]
@@ -131,43 +164,113 @@ pub fn load(path: &Path, options: &LoadOptions) -> Result<Scene, SceneError> {
     Scene::build(parts, options.accel)
 }
 
-/// Reads and validates the scene file and its meshes, without building the ray queries.
+/// Reads and validates the scene file and its meshes, without building the ray queries: a
+/// pbrt-v4 file by its extension (`.pbrt`), TOML otherwise.
 pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+    if super::pbrt::is_pbrt(path) {
+        return super::pbrt::load_parts(path, options);
+    }
+    let text = files::read_text(path, Kind::Scene)?;
+    let parse_error = |e: toml::de::Error| SceneError::Parse {
         file: path.to_path_buf(),
-        source,
-    })?;
-    let file: SceneFile = toml::from_str(&text).map_err(|e| SceneError::Parse {
-        file: path.to_path_buf(),
-        message: e.to_string(),
-    })?;
+        // TOML's messages quote the offending line, which may be any length.
+        message: files::shorten_lines(&e.to_string(), 200),
+    };
+    check_array_lengths(path, "", &text.parse::<toml::Table>().map_err(parse_error)?)?;
+    let file: SceneFile = toml::from_str(&text).map_err(parse_error)?;
     let mut loader = Loader {
         path: path.to_path_buf(),
         dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
         lenient: options.lenient,
+        shading_normals: options.shading_normals,
         hasher: Sha256::new(),
         materials: Vec::new(),
+        material_textures: Vec::new(),
+        textures: Vec::new(),
+        texture_files: HashMap::new(),
+        shading: MeshShading::default(),
         by_name: HashMap::new(),
         geometry: Geometry::default(),
         triangle_materials: Vec::new(),
         sphere_materials: Vec::new(),
         dropped_triangles: 0,
+        inputs: vec![path.to_path_buf()],
     };
     loader.hasher.update(text.as_bytes());
     loader.build(file)
+}
+
+/// The length of every fixed-size array of the scene file, by key.
+const ARRAY_LENGTHS: &[(&str, usize)] = &[
+    ("resolution", 2),
+    ("position", 3),
+    ("look_at", 3),
+    ("up", 3),
+    ("center", 3),
+    ("rotate_deg", 3),
+    ("translate", 3),
+    ("kd", 3),
+    ("ks", 3),
+    ("emission", 3),
+    ("intensity", 3),
+    ("direction", 3),
+    ("irradiance", 3),
+    ("horizon", 3),
+    ("zenith", 3),
+];
+
+/// Arrays of the wrong length are refused: the TOML reader would fill `[f32; 3]` from the
+/// first three numbers of a longer array and drop the rest unseen.
+fn check_array_lengths(path: &Path, at: &str, table: &toml::Table) -> Result<(), SceneError> {
+    for (key, value) in table {
+        let entry = if at.is_empty() {
+            key.clone()
+        } else {
+            format!("{at}.{key}")
+        };
+        match value {
+            toml::Value::Table(t) => check_array_lengths(path, &entry, t)?,
+            toml::Value::Array(items) => {
+                if let Some(&(_, n)) = ARRAY_LENGTHS.iter().find(|(k, _)| k == key) {
+                    if items.len() != n {
+                        return Err(SceneError::Invalid {
+                            file: path.to_path_buf(),
+                            entry,
+                            message: format!("expected {n} numbers, found {}", items.len()),
+                        });
+                    }
+                }
+                for (i, item) in items.iter().enumerate() {
+                    if let toml::Value::Table(t) = item {
+                        check_array_lengths(path, &format!("{entry}[{i}]"), t)?;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 struct Loader {
     path: PathBuf,
     dir: PathBuf,
     lenient: bool,
+    shading_normals: bool,
     hasher: Sha256,
     materials: Vec<Material>,
+    material_textures: Vec<MaterialTextures>,
+    textures: Vec<Arc<Texture>>,
+    /// Index in `textures` of each file read so far.
+    texture_files: HashMap<PathBuf, u32>,
+    shading: MeshShading,
     by_name: HashMap<String, u32>,
     geometry: Geometry,
     triangle_materials: Vec<u32>,
     sphere_materials: Vec<u32>,
     dropped_triangles: usize,
+    /// Every file read, for the check that an output overwrites none of them.
+    inputs: Vec<PathBuf>,
 }
 
 impl Loader {
@@ -203,15 +306,37 @@ impl Loader {
         }
     }
 
+    /// A position: finite and within +-[`MAX_COORDINATE`].
+    fn point(&self, entry: &str, v: [f32; 3]) -> Result<Vec3, SceneError> {
+        let p = self.vec3(entry, v)?;
+        if p.abs().max_element() > MAX_COORDINATE {
+            return Err(self.invalid(
+                entry,
+                format!(
+                    "{v:?} lies beyond +-{MAX_COORDINATE:e}, where f32 positions lose their precision"
+                ),
+            ));
+        }
+        Ok(p)
+    }
+
+    /// A reflectance: each component in [0, 1] (more would create energy).
+    fn albedo(&self, entry: &str, v: [f32; 3]) -> Result<Rgb, SceneError> {
+        let c = self.color(entry, v)?;
+        if c.max_component() > 1.0 {
+            return Err(self.invalid(
+                entry,
+                format!("{v:?} has a component above 1 and would create energy"),
+            ));
+        }
+        Ok(c)
+    }
+
     fn build(mut self, file: SceneFile) -> Result<SceneParts, SceneError> {
         let defaults = self.render_defaults(&file.render)?;
-        let sky = match &file.render.sky {
-            Some(s) => Some(SkyDesc {
-                horizon: self.color("render.sky.horizon", s.horizon)?,
-                zenith: self.color("render.sky.zenith", s.zenith)?,
-                up: self.direction("render.sky.up", s.up)?,
-            }),
-            None => None,
+        let (sky, env_map) = match &file.render.sky {
+            Some(s) => self.sky(s)?,
+            None => (None, None),
         };
         let cameras = file
             .camera
@@ -228,15 +353,27 @@ impl Loader {
         // the same name are overridden by them.
         for (name, table) in &file.material {
             let material = self.material_from_table(name, table, None)?;
-            self.add_material(material);
+            let index = self.add_material(material);
+            let entry = format!("material.{name}");
+            let dir = self.dir.clone();
+            let path = self.path.clone();
+            let kd = self.texture(&path, &format!("{entry}.texture"), &dir, &table.texture)?;
+            let ks = self.texture(
+                &path,
+                &format!("{entry}.ks_texture"),
+                &dir,
+                &table.ks_texture,
+            )?;
+            self.material_textures[index as usize] = MaterialTextures { kd, ks };
         }
         for (i, mesh) in file.mesh.iter().enumerate() {
             self.mesh(i, mesh)?;
         }
         for (i, s) in file.sphere.iter().enumerate() {
             let entry = format!("sphere[{i}]");
-            let center = self.vec3(&format!("{entry}.center"), s.center)?;
+            let center = self.point(&format!("{entry}.center"), s.center)?;
             let radius = self.positive(&format!("{entry}.radius"), s.radius)?;
+            self.point(&format!("{entry}.radius"), [radius; 3])?;
             let material = self.material_index(&format!("{entry}.material"), &s.material)?;
             self.geometry.spheres.push(Sphere { center, radius });
             self.sphere_materials.push(material);
@@ -259,6 +396,15 @@ impl Loader {
                 file: self.path.clone(),
             });
         }
+        let triangles = self.geometry.triangles.len();
+        for list in [
+            &mut self.shading.triangle_normals,
+            &mut self.shading.triangle_uvs,
+        ] {
+            if !list.is_empty() {
+                list.resize(triangles, MeshShading::NONE);
+            }
+        }
         let source_hash = self
             .hasher
             .finalize()
@@ -272,11 +418,16 @@ impl Loader {
             triangle_materials: self.triangle_materials,
             sphere_materials: self.sphere_materials,
             materials: self.materials,
+            material_textures: self.material_textures,
+            textures: self.textures,
+            shading: self.shading,
             point_and_directional: lights,
             sky,
+            env_map,
             cameras,
             defaults,
             dropped_triangles: self.dropped_triangles,
+            inputs: self.inputs,
         })
     }
 
@@ -297,6 +448,101 @@ impl Loader {
         Ok(d)
     }
 
+    /// The `[render] sky` table: a gradient (`horizon`, `zenith`, `up`) or an environment image
+    /// (`image`, `scale`, `rotate_deg`), not both.
+    fn sky(&mut self, s: &SkyTable) -> Result<(Option<SkyDesc>, Option<EnvMapDesc>), SceneError> {
+        let entry = "render.sky";
+        let Some(image) = &s.image else {
+            if s.scale.is_some() || s.rotate_deg.is_some() {
+                return Err(self.invalid(entry, "`scale` and `rotate_deg` need an `image`"));
+            }
+            let (Some(horizon), Some(zenith)) = (s.horizon, s.zenith) else {
+                return Err(self.invalid(
+                    entry,
+                    "a sky needs `horizon` and `zenith` (a gradient) or `image`",
+                ));
+            };
+            let sky = SkyDesc {
+                horizon: self.color("render.sky.horizon", horizon)?,
+                zenith: self.color("render.sky.zenith", zenith)?,
+                up: self.direction("render.sky.up", s.up.unwrap_or_else(default_up))?,
+            };
+            return Ok((Some(sky), None));
+        };
+        if s.horizon.is_some() || s.zenith.is_some() || s.up.is_some() {
+            return Err(self.invalid(
+                entry,
+                "a sky is a gradient (horizon, zenith, up) or an image, not both",
+            ));
+        }
+        let scale = s.scale.unwrap_or(1.0);
+        if !(scale.is_finite() && scale >= 0.0) {
+            return Err(self.invalid(
+                "render.sky.scale",
+                format!("{scale} must be a non-negative finite number"),
+            ));
+        }
+        let r = self.vec3("render.sky.rotate_deg", s.rotate_deg.unwrap_or_default())?;
+        let path = self.dir.join(image);
+        let (_, image) = self
+            .read_image(&path)
+            .map_err(|message| self.invalid("render.sky.image", message))?;
+        Ok((
+            None,
+            Some(EnvMapDesc {
+                image,
+                scale,
+                rotation: rotation_deg(r),
+            }),
+        ))
+    }
+
+    /// Reads an image (once per file: later uses share the decoded copy) and adds its bytes to
+    /// the scene hash; the error names the image file.
+    fn read_image(&mut self, path: &Path) -> Result<(u32, Arc<Texture>), String> {
+        if let Some(&i) = self.texture_files.get(path) {
+            return Ok((i, Arc::clone(&self.textures[i as usize])));
+        }
+        let fail = |e: String| format!("cannot read image {}: {e}", path.display());
+        let bytes = std::fs::read(path).map_err(|e| fail(e.to_string()))?;
+        let texture = Arc::new(texture::read(path).map_err(fail)?);
+        self.hasher.update(&bytes);
+        let index = self.textures.len() as u32;
+        self.texture_files.insert(path.to_path_buf(), index);
+        self.textures.push(Arc::clone(&texture));
+        Ok((index, texture))
+    }
+
+    /// The texture named by `name` (relative to `dir`) for the entry `entry` of `file`: an error
+    /// naming both when it cannot be read, or with `--lenient` a warning and no texture (the
+    /// material keeps its constant colour).
+    fn texture(
+        &mut self,
+        file: &Path,
+        entry: &str,
+        dir: &Path,
+        name: &Option<PathBuf>,
+    ) -> Result<Option<u32>, SceneError> {
+        let Some(name) = name else {
+            return Ok(None);
+        };
+        match self.read_image(&dir.join(name)) {
+            Ok((index, _)) => Ok(Some(index)),
+            Err(message) if self.lenient => {
+                eprintln!(
+                    "warning: {}: {entry}: {message}; using the material's constant colour",
+                    file.display()
+                );
+                Ok(None)
+            }
+            Err(message) => Err(SceneError::Invalid {
+                file: file.to_path_buf(),
+                entry: entry.to_string(),
+                message,
+            }),
+        }
+    }
+
     fn direction(&self, entry: &str, v: [f32; 3]) -> Result<Vec3, SceneError> {
         let d = self.vec3(entry, v)?;
         if d.length_squared() == 0.0 {
@@ -308,13 +554,13 @@ impl Loader {
     fn camera(&self, i: usize, c: &CameraTable) -> Result<CameraDesc, SceneError> {
         let name = c.name.clone().unwrap_or_else(|| i.to_string());
         let entry = format!("camera[{i}] ({name})");
-        let position = self.vec3(&format!("{entry}.position"), c.position)?;
-        let look_at = self.vec3(&format!("{entry}.look_at"), c.look_at)?;
+        let position = self.point(&format!("{entry}.position"), c.position)?;
+        let look_at = self.point(&format!("{entry}.look_at"), c.look_at)?;
         let up = self.direction(&format!("{entry}.up"), c.up)?;
-        if !(c.fov > 0.0 && c.fov < 180.0) {
+        if !(MIN_FOV..=MAX_FOV).contains(&c.fov) {
             return Err(self.invalid(
                 format!("{entry}.fov"),
-                format!("{} is not in (0, 180) degrees", c.fov),
+                format!("{} is not in [{MIN_FOV}, {MAX_FOV}] degrees", c.fov),
             ));
         }
         let forward = look_at - position;
@@ -330,6 +576,8 @@ impl Loader {
             look_at,
             up,
             fov_deg: c.fov,
+            fov_axis: FovAxis::Vertical,
+            mirrored: false,
         })
     }
 
@@ -337,6 +585,7 @@ impl Loader {
         let index = self.materials.len() as u32;
         self.by_name.insert(material.name.clone(), index);
         self.materials.push(material);
+        self.material_textures.push(MaterialTextures::default());
         index
     }
 
@@ -368,11 +617,11 @@ impl Loader {
             None => (Rgb::splat(0.8), Rgb::BLACK, 1.0, 1.5),
         };
         let kd =
-            t.kd.map(|v| self.color(&format!("{entry}.kd"), v))
+            t.kd.map(|v| self.albedo(&format!("{entry}.kd"), v))
                 .transpose()?
                 .unwrap_or(base_kd);
         let ks =
-            t.ks.map(|v| self.color(&format!("{entry}.ks"), v))
+            t.ks.map(|v| self.albedo(&format!("{entry}.ks"), v))
                 .transpose()?
                 .unwrap_or(base_ks);
         let exponent = t
@@ -433,8 +682,9 @@ impl Loader {
             return Err(self.invalid(
                 entry,
                 format!(
-                    "kd + ks = {:?} exceeds 1 and would create energy (use --lenient to clamp)",
-                    (kd + ks).to_array()
+                    "kd + ks = {:?} exceeds 1 and would create energy (use {} to clamp)",
+                    (kd + ks).to_array(),
+                    OptionName("lenient")
                 ),
             ));
         }
@@ -453,46 +703,59 @@ impl Loader {
 
     fn mesh(&mut self, i: usize, mesh: &MeshTable) -> Result<(), SceneError> {
         let entry = format!("mesh[{i}]");
+        if mesh.file.as_os_str().is_empty() {
+            return Err(self.invalid(format!("{entry}.file"), "the path is empty"));
+        }
         let obj_path = self.dir.join(&mesh.file);
-        let bytes = std::fs::read(&obj_path).map_err(|source| SceneError::Io {
-            file: obj_path.clone(),
-            source,
-        })?;
+        let bytes = files::read(&obj_path, Kind::Obj)?;
+        self.inputs.push(obj_path.clone());
         self.hasher.update(&bytes);
         let load_options = tobj::LoadOptions {
             triangulate: true,
             single_index: false,
             ..Default::default()
         };
-        let (models, mtl) =
-            tobj::load_obj(&obj_path, &load_options).map_err(|e| SceneError::Parse {
-                file: obj_path.clone(),
-                message: format!("{entry}: {e}"),
-            })?;
-        let mtllib = mtllib_name(&bytes);
-        let mtl_materials = match (mtl, &mtllib) {
-            (Ok(materials), _) => materials,
-            (Err(e), Some(name)) => {
-                return Err(SceneError::Invalid {
-                    file: obj_path.parent().unwrap_or(Path::new("")).join(name),
-                    entry: format!("mtllib of {} ({entry})", obj_path.display()),
-                    message: format!("cannot load: {e}"),
-                })
-            }
-            (Err(_), None) => Vec::new(),
-        };
-        if let Some(name) = &mtllib {
-            let mtl_path = obj_path.parent().unwrap_or(Path::new("")).join(name);
-            if let Ok(text) = std::fs::read(&mtl_path) {
-                self.hasher.update(&text);
-                warn_unknown_mtl_statements(&mtl_path, &String::from_utf8_lossy(&text));
-            }
+        let obj = wavefront::load_obj(&obj_path, &bytes, &load_options, &entry)?;
+        for mtl in &obj.mtl_files {
+            self.hasher.update(&mtl.bytes);
+            self.inputs.push(mtl.path.clone());
+            warn_unknown_mtl_statements(&mtl.path, &String::from_utf8_lossy(&mtl.bytes));
         }
-        let mut indices = Vec::with_capacity(mtl_materials.len());
-        for m in &mtl_materials {
-            indices.push(self.mtl_material(&obj_path, m)?);
+        if mesh.material.is_none() {
+            let scene_materials: Vec<String> = self.by_name.keys().cloned().collect();
+            wavefront::warn_unknown_usemtl(&obj_path, &obj, &scene_materials);
         }
-        self.mesh_models(&entry, &obj_path, mesh, &models, &indices)
+        // Texture files are named relative to the MTL file that names them.
+        let mtl_file = obj
+            .mtl_files
+            .first()
+            .map_or_else(|| obj_path.clone(), |mtl| mtl.path.clone());
+        let mut indices = Vec::with_capacity(obj.materials.len());
+        for m in &obj.materials {
+            indices.push(self.mtl_material(&obj_path, &mtl_file, m)?);
+        }
+        let first_vertex = self.geometry.positions.len();
+        self.mesh_models(&entry, &obj_path, mesh, &obj.models, &indices)?;
+        self.check_extent(&entry, &obj_path, first_vertex)
+    }
+
+    /// Vertices (after the transform) must lie where f32 positions stay precise enough.
+    fn check_extent(&self, entry: &str, obj_path: &Path, first: usize) -> Result<(), SceneError> {
+        let positions = &self.geometry.positions[first..];
+        match positions
+            .iter()
+            .position(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)
+        {
+            Some(k) => Err(SceneError::Invalid {
+                file: obj_path.to_path_buf(),
+                entry: format!("{entry}, vertex {}", k + 1),
+                message: format!(
+                    "{} (after the transform) lies beyond +-{MAX_COORDINATE:e}, where f32 positions lose their precision",
+                    positions[k]
+                ),
+            }),
+            None => Ok(()),
+        }
     }
 
     fn mesh_models(
@@ -508,10 +771,7 @@ impl Loader {
                 let scale = self.positive(&format!("{entry}.transform.scale"), t.scale)?;
                 let r = self.vec3(&format!("{entry}.transform.rotate_deg"), t.rotate_deg)?;
                 let translate = self.vec3(&format!("{entry}.transform.translate"), t.translate)?;
-                let rotation = Mat3::from_rotation_z(r.z.to_radians())
-                    * Mat3::from_rotation_y(r.y.to_radians())
-                    * Mat3::from_rotation_x(r.x.to_radians());
-                Some((rotation * scale, translate))
+                Some((rotation_deg(r) * scale, translate))
             }
             None => None,
         };
@@ -524,6 +784,12 @@ impl Loader {
         for model in models {
             let m = &model.mesh;
             let base = self.geometry.positions.len() as u32;
+            let (normal_base, uv_base) = self.model_shading(
+                obj_path,
+                model,
+                mesh.shading_normals,
+                transform.map(|(linear, _)| linear),
+            )?;
             for (k, p) in m.positions.chunks_exact(3).enumerate() {
                 let mut v = Vec3::new(p[0], p[1], p[2]);
                 if !v.is_finite() {
@@ -555,18 +821,82 @@ impl Loader {
                     }
                 },
             };
-            for tri in m.indices.chunks_exact(3) {
+            for (k, tri) in m.indices.chunks_exact(3).enumerate() {
                 let t = [base + tri[0], base + tri[1], base + tri[2]];
                 let [a, b, c] = t.map(|i| self.geometry.positions[i as usize]);
                 if (b - a).cross(c - a).length_squared() <= 0.0 {
                     self.dropped_triangles += 1;
                     continue;
                 }
+                let triangle = self.geometry.triangles.len();
+                if let Some(nb) = normal_base {
+                    let n = &m.normal_indices[3 * k..3 * k + 3];
+                    let list = &mut self.shading.triangle_normals;
+                    list.resize(triangle, MeshShading::NONE);
+                    list.push([nb + n[0], nb + n[1], nb + n[2]]);
+                }
+                if let Some(ub) = uv_base {
+                    let n = &m.texcoord_indices[3 * k..3 * k + 3];
+                    let list = &mut self.shading.triangle_uvs;
+                    list.resize(triangle, MeshShading::NONE);
+                    list.push([ub + n[0], ub + n[1], ub + n[2]]);
+                }
                 self.geometry.triangles.push(t);
                 self.triangle_materials.push(material);
             }
         }
         Ok(())
+    }
+
+    /// Appends a model's normals (when `use_normals`, turned by `linear`) and uvs to the
+    /// scene's shading data; returns where each list starts, `None` for data the model lacks.
+    fn model_shading(
+        &mut self,
+        obj_path: &Path,
+        model: &tobj::Model,
+        use_normals: bool,
+        linear: Option<Mat3>,
+    ) -> Result<(Option<u32>, Option<u32>), SceneError> {
+        let m = &model.mesh;
+        let invalid = |what: &str, k: usize, v: &[f32]| SceneError::Invalid {
+            file: obj_path.to_path_buf(),
+            entry: format!("object '{}', {what} {k}", model.name),
+            message: format!("{v:?} is not finite"),
+        };
+        let has_normals = self.shading_normals
+            && use_normals
+            && !m.normals.is_empty()
+            && m.normal_indices.len() == m.indices.len();
+        let normal_base = if has_normals {
+            let base = self.shading.normals.len() as u32;
+            for (k, n) in m.normals.chunks_exact(3).enumerate() {
+                let v = Vec3::new(n[0], n[1], n[2]);
+                if !v.is_finite() {
+                    return Err(invalid("normal", k, n));
+                }
+                // Rotation and uniform scale: normals turn with the linear part.
+                let v = linear.map_or(v, |l| l * v);
+                self.shading.normals.push(v.normalize_or_zero());
+            }
+            Some(base)
+        } else {
+            None
+        };
+        let has_uvs = !m.texcoords.is_empty() && m.texcoord_indices.len() == m.indices.len();
+        let uv_base = if has_uvs {
+            let base = self.shading.uvs.len() as u32;
+            for (k, t) in m.texcoords.chunks_exact(2).enumerate() {
+                let v = Vec2::new(t[0], t[1]);
+                if !v.is_finite() {
+                    return Err(invalid("texture coordinate", k, t));
+                }
+                self.shading.uvs.push(v);
+            }
+            Some(base)
+        } else {
+            None
+        };
+        Ok((normal_base, uv_base))
     }
 
     fn default_material(&mut self) -> u32 {
@@ -585,7 +915,12 @@ impl Loader {
 
     /// The material for an MTL entry: a scene-file table of the same name wins (it was added
     /// first); otherwise DESIGN.md's MTL mapping.
-    fn mtl_material(&mut self, obj_path: &Path, m: &tobj::Material) -> Result<u32, SceneError> {
+    fn mtl_material(
+        &mut self,
+        obj_path: &Path,
+        mtl_file: &Path,
+        m: &tobj::Material,
+    ) -> Result<u32, SceneError> {
         if let Some(&i) = self.by_name.get(&m.name) {
             return Ok(i);
         }
@@ -622,11 +957,27 @@ impl Loader {
             MaterialKind::Lambert { kd }
         };
         let kind = self.check_energy(&entry, kind)?;
-        Ok(self.add_material(Material {
+        let index = self.add_material(Material {
             name: m.name.clone(),
             kind,
             emission,
-        }))
+        });
+        let mtl_dir = mtl_file.parent().unwrap_or(Path::new("")).to_path_buf();
+        let map = |t: &Option<String>| t.as_ref().map(|s| PathBuf::from(texture_file_name(s)));
+        let kd = self.texture(
+            mtl_file,
+            &format!("material '{}': map_Kd", m.name),
+            &mtl_dir,
+            &map(&m.diffuse_texture),
+        )?;
+        let ks = self.texture(
+            mtl_file,
+            &format!("material '{}': map_Ks", m.name),
+            &mtl_dir,
+            &map(&m.specular_texture),
+        )?;
+        self.material_textures[index as usize] = MaterialTextures { kd, ks };
+        Ok(index)
     }
 
     fn light(&self, i: usize, l: &LightTable) -> Result<Light, SceneError> {
@@ -636,7 +987,7 @@ impl Loader {
         };
         match l.kind.as_str() {
             "point" => Ok(Light::Point {
-                position: self.vec3(&format!("{entry}.position"), need(l.position, "position")?)?,
+                position: self.point(&format!("{entry}.position"), need(l.position, "position")?)?,
                 intensity: self.color(&format!("{entry}.intensity"), need(l.intensity, "intensity")?)?,
             }),
             "directional" => Ok(Light::Directional {
@@ -652,6 +1003,13 @@ impl Loader {
     }
 }
 
+/// Rotation by Euler angles in degrees: about x, then y, then z.
+fn rotation_deg(r: Vec3) -> Mat3 {
+    Mat3::from_rotation_z(r.z.to_radians())
+        * Mat3::from_rotation_y(r.y.to_radians())
+        * Mat3::from_rotation_x(r.x.to_radians())
+}
+
 fn kind_name(kind: &MaterialKind) -> &'static str {
     match kind {
         MaterialKind::Lambert { .. } => "lambert",
@@ -661,17 +1019,15 @@ fn kind_name(kind: &MaterialKind) -> &'static str {
     }
 }
 
-/// The first `mtllib` of an OBJ file.
-fn mtllib_name(obj: &[u8]) -> Option<String> {
-    String::from_utf8_lossy(obj).lines().find_map(|l| {
-        l.trim()
-            .strip_prefix("mtllib ")
-            .map(|s| s.trim().to_string())
-    })
+/// The file of an MTL `map_*` statement: its last word, after any options (`-s 1 1 1 ...`).
+fn texture_file_name(statement: &str) -> &str {
+    statement.split_whitespace().last().unwrap_or(statement)
 }
 
 /// MTL statements vmerge understands; anything else is reported once per file.
-const KNOWN_MTL: &[&str] = &["newmtl", "Kd", "Ks", "Ke", "Ns", "Ni", "d", "illum"];
+const KNOWN_MTL: &[&str] = &[
+    "newmtl", "Kd", "Ks", "Ke", "Ns", "Ni", "d", "illum", "map_Kd", "map_Ks",
+];
 
 fn warn_unknown_mtl_statements(path: &Path, text: &str) {
     let mut seen = std::collections::BTreeSet::new();

@@ -2,26 +2,57 @@
 //! geometry for the ray queries, materials, lights and cameras.
 
 use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, PACKET};
-use crate::bsdf::Material;
+use crate::bsdf::{Albedo, Bsdf, Material, MaterialKind, Normals, TransportMode};
 use crate::color::Rgb;
-use crate::light::Lights;
-use glam::Vec3;
+use crate::light::{EnvMapDesc, Lights, SkyDesc};
+use crate::texture::Texture;
+use glam::{Vec2, Vec3};
 use std::path::PathBuf;
+use std::sync::Arc;
 
 mod camera;
 mod error;
 mod load;
+pub mod pbrt;
+mod wavefront;
 
-pub use camera::{Camera, CameraDesc};
+pub use camera::{Camera, CameraDesc, FovAxis};
 pub use error::SceneError;
-pub use load::{load, LoadOptions};
+pub use load::{load, load_parts, LoadOptions};
 
-/// Background radiance L(w) = horizon + (zenith - horizon) * max(0, w . up).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct SkyDesc {
-    pub horizon: Rgb,
-    pub zenith: Rgb,
-    pub up: Vec3,
+/// The largest coordinate a scene may have: f32 positions there are still 1/16 apart, so a
+/// scene of ordinary size keeps its detail, while beyond it areas, distances and the default
+/// merge radius lose their meaning (and their squares overflow).
+pub const MAX_COORDINATE: f32 = 1e8;
+
+/// Per-vertex shading data of the triangles: normals and uvs with their own index triples
+/// (OBJ indexes them apart from positions). A list is empty when no triangle has that data.
+#[derive(Clone, Debug, Default)]
+pub struct MeshShading {
+    pub normals: Vec<Vec3>,
+    pub uvs: Vec<Vec2>,
+    /// Per triangle, indices into `normals`, or [`MeshShading::NONE`] for a flat triangle.
+    pub triangle_normals: Vec<[u32; 3]>,
+    /// Per triangle, indices into `uvs`, or [`MeshShading::NONE`].
+    pub triangle_uvs: Vec<[u32; 3]>,
+}
+
+impl MeshShading {
+    pub const NONE: [u32; 3] = [u32::MAX; 3];
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        self.normals.len() * 12
+            + self.uvs.len() * 8
+            + (self.triangle_normals.len() + self.triangle_uvs.len()) * 12
+    }
+}
+
+/// Which textures a material's albedos come from (indices into `Scene::textures`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MaterialTextures {
+    pub kd: Option<u32>,
+    pub ks: Option<u32>,
 }
 
 /// The `[render]` table: per-scene defaults, each overridable on the command line.
@@ -51,9 +82,31 @@ pub struct SurfaceHit {
     pub position: Vec3,
     /// Unit geometric normal (outward for spheres, counter-clockwise side for triangles).
     pub ng: Vec3,
+    /// Unit shading normal, on the side of `ng`; equal to `ng` where the mesh has none.
+    pub ns: Vec3,
+    /// Texture coordinates (zero where the mesh has none).
+    pub uv: Vec2,
     pub material: u32,
     /// Index into `Scene::lights` when the primitive emits.
     pub light: Option<u32>,
+}
+
+impl SurfaceHit {
+    pub fn normals(&self) -> Normals {
+        Normals {
+            ng: self.ng,
+            ns: self.ns,
+        }
+    }
+}
+
+/// Texture coordinates on a sphere from its outward normal: longitude around y, latitude from
+/// the bottom (v = 0) to the top (v = 1).
+fn sphere_uv(n: Vec3) -> Vec2 {
+    Vec2::new(
+        0.5 + n.x.atan2(-n.z) * (0.5 * std::f32::consts::FRAC_1_PI),
+        1.0 - n.y.clamp(-1.0, 1.0).acos() * std::f32::consts::FRAC_1_PI,
+    )
 }
 
 /// A loaded, validated scene, ready to render.
@@ -65,6 +118,10 @@ pub struct Scene {
     pub triangle_materials: Vec<u32>,
     pub sphere_materials: Vec<u32>,
     pub materials: Vec<Material>,
+    /// Parallel to `materials`.
+    pub material_textures: Vec<MaterialTextures>,
+    pub textures: Vec<Arc<Texture>>,
+    pub shading: MeshShading,
     pub lights: Lights,
     pub cameras: Vec<CameraDesc>,
     pub defaults: RenderDefaults,
@@ -73,6 +130,8 @@ pub struct Scene {
     pub bounding_sphere: (Vec3, f32),
     /// Degenerate triangles dropped while loading.
     pub dropped_triangles: usize,
+    /// Every file the scene was read from (the scene file first).
+    pub inputs: Vec<PathBuf>,
 }
 
 /// Everything but the ray-query structure, from which [`Scene::build`] makes a scene; the
@@ -84,11 +143,19 @@ pub struct SceneParts {
     pub triangle_materials: Vec<u32>,
     pub sphere_materials: Vec<u32>,
     pub materials: Vec<Material>,
+    /// Parallel to `materials`.
+    pub material_textures: Vec<MaterialTextures>,
+    /// One decoded copy per file.
+    pub textures: Vec<Arc<Texture>>,
+    pub shading: MeshShading,
     pub point_and_directional: Vec<crate::light::Light>,
     pub sky: Option<SkyDesc>,
+    /// An environment image in place of the gradient sky.
+    pub env_map: Option<EnvMapDesc>,
     pub cameras: Vec<CameraDesc>,
     pub defaults: RenderDefaults,
     pub dropped_triangles: usize,
+    pub inputs: Vec<PathBuf>,
 }
 
 impl Scene {
@@ -107,8 +174,15 @@ impl Scene {
             &parts.materials,
             parts.point_and_directional,
             parts.sky,
+            parts.env_map,
             (center, radius),
         );
+        if let Some(message) = lights.power_overflow() {
+            return Err(SceneError::LightPower {
+                file: parts.source.clone(),
+                message,
+            });
+        }
         if lights.is_empty() {
             return Err(SceneError::NoLights {
                 file: parts.source.clone(),
@@ -126,12 +200,16 @@ impl Scene {
             triangle_materials: parts.triangle_materials,
             sphere_materials: parts.sphere_materials,
             materials: parts.materials,
+            material_textures: parts.material_textures,
+            textures: parts.textures,
+            shading: parts.shading,
             lights,
             cameras: parts.cameras,
             defaults: parts.defaults,
             accel,
             bounding_sphere: (center, radius),
             dropped_triangles: parts.dropped_triangles,
+            inputs: parts.inputs,
         })
     }
 
@@ -157,25 +235,114 @@ impl Scene {
         self.material(material).kind.is_delta()
     }
 
-    /// Turns a backend hit into a surface point with its material and light.
+    /// Turns a backend hit into a surface point with its material, light, shading normal and
+    /// texture coordinates.
     pub fn surface_hit(&self, ray: &Ray, hit: Hit) -> SurfaceHit {
-        let (material, light) = match hit.primitive {
+        let ng = hit.ng.normalize();
+        let (material, light, ns, uv) = match hit.primitive {
             Primitive::Triangle(i) => (
                 self.triangle_materials[i as usize],
                 self.lights.triangle_light(i),
+                self.triangle_shading_normal(i, &hit, ng),
+                self.triangle_uv(i, &hit),
             ),
-            Primitive::Sphere(i) => (
-                self.sphere_materials[i as usize],
-                self.lights.sphere_light(i),
-            ),
+            Primitive::Sphere(i) => {
+                let material = self.sphere_materials[i as usize];
+                let textured = self.material_textures[material as usize] != Default::default();
+                let uv = if textured { sphere_uv(ng) } else { Vec2::ZERO };
+                (material, self.lights.sphere_light(i), ng, uv)
+            }
         };
         SurfaceHit {
             hit,
             position: ray.at(hit.t),
-            ng: hit.ng.normalize(),
+            ng,
+            ns,
+            uv,
             material,
             light,
         }
+    }
+
+    /// The interpolated vertex normal, turned to the side of `ng`; `ng` itself for a flat
+    /// triangle or where the interpolation degenerates.
+    fn triangle_shading_normal(&self, triangle: u32, hit: &Hit, ng: Vec3) -> Vec3 {
+        let Some(&indices) = self.shading.triangle_normals.get(triangle as usize) else {
+            return ng;
+        };
+        if indices == MeshShading::NONE {
+            return ng;
+        }
+        let [a, b, c] = indices.map(|k| self.shading.normals[k as usize]);
+        let n = (1.0 - hit.u - hit.v) * a + hit.u * b + hit.v * c;
+        let len = n.length();
+        if !(len > 0.0 && len.is_finite()) {
+            return ng;
+        }
+        let n = n / len;
+        if n.dot(ng) < 0.0 {
+            -n
+        } else {
+            n
+        }
+    }
+
+    fn triangle_uv(&self, triangle: u32, hit: &Hit) -> Vec2 {
+        match self.shading.triangle_uvs.get(triangle as usize) {
+            Some(&indices) if indices != MeshShading::NONE => {
+                let [a, b, c] = indices.map(|k| self.shading.uvs[k as usize]);
+                (1.0 - hit.u - hit.v) * a + hit.u * b + hit.v * c
+            }
+            _ => Vec2::ZERO,
+        }
+    }
+
+    /// The material's albedos at `uv`: textures where it has them (clamped so that kd + ks
+    /// <= 1 per channel, which Phong needs to conserve energy), its constants elsewhere.
+    pub fn albedo(&self, material: u32, uv: Vec2) -> Albedo {
+        let kind = &self.material(material).kind;
+        let mut albedo = Albedo::of(kind);
+        let textures = self.material_textures[material as usize];
+        if textures == MaterialTextures::default() {
+            return albedo;
+        }
+        let clamp = |c: Rgb, limit: Rgb| {
+            Rgb::new(
+                c.r.clamp(0.0, limit.r.max(0.0)),
+                c.g.clamp(0.0, limit.g.max(0.0)),
+                c.b.clamp(0.0, limit.b.max(0.0)),
+            )
+        };
+        if let Some(t) = textures.ks {
+            albedo.ks = clamp(self.textures[t as usize].lookup(uv), Rgb::WHITE);
+        }
+        if let Some(t) = textures.kd {
+            let limit = match kind {
+                MaterialKind::Phong { .. } => Rgb::WHITE - albedo.ks,
+                _ => Rgb::WHITE,
+            };
+            albedo.kd = clamp(self.textures[t as usize].lookup(uv), limit);
+        }
+        albedo
+    }
+
+    /// The BSDF of `material` at a surface point with `normals` and texture coordinates `uv`,
+    /// seen from `wo`: what the integrators scatter with.
+    pub fn bsdf(
+        &self,
+        material: u32,
+        normals: Normals,
+        uv: Vec2,
+        wo: Vec3,
+        mode: TransportMode,
+    ) -> Option<Bsdf<'_>> {
+        let kind = &self.material(material).kind;
+        Bsdf::shaded(kind, self.albedo(material, uv), normals, wo, mode)
+    }
+
+    /// [`Scene::bsdf`] at a hit.
+    pub fn bsdf_at(&self, hit: &SurfaceHit, wo: Vec3, mode: TransportMode) -> Option<Bsdf<'_>> {
+        self.bsdf(hit.material, hit.normals(), hit.uv, wo, mode)
     }
 
     pub fn occluded(&self, ray: &Ray) -> bool {

@@ -24,6 +24,26 @@ pub fn errors(a_path: &Path, b_path: &Path) -> Result<(f64, f64), FilmError> {
     ))
 }
 
+/// Relative MSE of `a` against the reference `b`: the mean over pixels and channels of
+/// (a - b)^2 / (b^2 + 0.01), pbrt's convention, so that dark regions weigh as much as bright
+/// ones without dividing by zero. Refuses images of different resolutions.
+pub fn relative_mse(a_path: &Path, b_path: &Path) -> Result<f64, FilmError> {
+    let a = exr::read_image(a_path)?;
+    let b = exr::read_image(b_path)?;
+    same_size(&a, a_path, &b, b_path)?;
+    let term = |p: f32, q: f32| {
+        let (p, q) = (f64::from(p), f64::from(q));
+        (p - q) * (p - q) / (q * q + 0.01)
+    };
+    let sum: f64 = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(p, q)| term(p.r, q.r) + term(p.g, q.g) + term(p.b, q.b))
+        .sum();
+    Ok(sum / (3 * a.pixels.len().max(1)) as f64)
+}
+
 /// Writes to `out` the relative difference of `a` to `b` (000 Fig. 3.3): `|a - b| / |b|` per
 /// pixel and channel. Where `b` is 0 the absolute difference `|a - b|` is written instead, so
 /// that 0 stays 0 and a spurious value in `a` still shows. Refuses images of different

@@ -2,7 +2,7 @@
 //! runs), weighted by their iterations.
 
 use crate::film::{exr, Film, FilmError, Metadata};
-use crate::render::RenderOptions;
+use crate::options::RenderOptions;
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
@@ -34,6 +34,10 @@ pub fn merge(out: &Path, inputs: &[PathBuf]) -> Result<(), FilmError> {
             message: "merge needs at least one input".into(),
         });
     };
+    crate::files::check_output(out, inputs).map_err(|e| FilmError::Invalid {
+        file: e.file,
+        message: e.message,
+    })?;
     let (mut film, mut metadata) = exr::read_render(first_path)?;
     let mut seeds: Vec<(u64, &Path)> = seeds_of(&metadata, first_path)?;
     for path in rest {
@@ -51,7 +55,22 @@ pub fn merge(out: &Path, inputs: &[PathBuf]) -> Result<(), FilmError> {
             }
             seeds.push((seed, from));
         }
+        if film.iterations + other.iterations > crate::options::MAX_ITERATIONS {
+            return Err(FilmError::Invalid {
+                file: path.clone(),
+                message: format!(
+                    "the merge would have more than {} iterations",
+                    crate::options::MAX_ITERATIONS
+                ),
+            });
+        }
         film.accumulate(&other);
+        if film.sum.iter().flatten().any(|s| !s.is_finite()) {
+            return Err(FilmError::Invalid {
+                file: path.clone(),
+                message: "its sums and the earlier inputs' overflow f64 together".into(),
+            });
+        }
         metadata.render_seconds += m.render_seconds;
         metadata.dropped_samples += m.dropped_samples;
     }

@@ -1,9 +1,12 @@
-//! Convergence charts (000 ch. 4): RMS error against render time, both on log scales, one
-//! series per input labelled by technique and radius. PNG or SVG by the output's extension.
+//! Convergence charts (000 ch. 4): RMS or mean absolute error against render time, both on
+//! log scales, one series per input labelled by technique and radius; and [`draw_charts`], the
+//! same drawing for any log-log data (the batch report's error-against-radius charts). PNG or
+//! SVG by the output's extension.
 //! The font ships with the project (assets/fonts) and is compiled in, so no system font stack
 //! (fontconfig, freetype) is needed.
 
-use crate::film::{atomic_write, FilmError, Metadata, TraceWindow};
+use crate::film::{atomic_write, FilmError, Metadata};
+use crate::options::OptionName;
 use crate::tools::metadata;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -32,10 +35,59 @@ fn register_font() -> Result<(), String> {
         .clone()
 }
 
-struct Series {
-    label: String,
-    /// (seconds, rmse) of the whole image, then one list per trace window.
-    points: Vec<Vec<(f64, f64)>>,
+/// The error a chart shows.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Metric {
+    /// Mean absolute error (the thesis's charts, 000 ch. 4).
+    Mae,
+    Rmse,
+}
+
+impl Metric {
+    pub const ALL: [Metric; 2] = [Metric::Mae, Metric::Rmse];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Metric::Mae => "mae",
+            Metric::Rmse => "rmse",
+        }
+    }
+
+    pub fn from_name(name: &str) -> Option<Metric> {
+        Metric::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    /// The axis label.
+    pub fn label(self) -> &'static str {
+        match self {
+            Metric::Mae => "mean absolute error",
+            Metric::Rmse => "RMS error",
+        }
+    }
+
+    /// The metric of `[mae, rmse]`.
+    pub fn of(self, [mae, rmse]: [f64; 2]) -> f64 {
+        match self {
+            Metric::Mae => mae,
+            Metric::Rmse => rmse,
+        }
+    }
+}
+
+/// One chart of [`draw_charts`]: log-log axes, one line per series.
+#[derive(Clone, Debug)]
+pub struct Chart {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<ChartSeries>,
+}
+
+#[derive(Clone, Debug)]
+pub struct ChartSeries {
+    pub label: String,
+    /// (x, y); points with a coordinate <= 0 cannot be drawn on log axes and are left out.
+    pub points: Vec<(f64, f64)>,
 }
 
 /// The technique and, when given, the radius; inputs that would share a label get their file
@@ -62,11 +114,8 @@ fn labels(inputs: &[(PathBuf, Metadata)]) -> Vec<String> {
         .collect()
 }
 
-/// The series of `inputs` and, with `traces`, their common trace windows.
-fn load_series(
-    inputs: &[PathBuf],
-    traces: bool,
-) -> Result<(Vec<Series>, Vec<TraceWindow>), FilmError> {
+/// The charts of `inputs`: the whole image and, with `traces`, one per common trace window.
+fn load_charts(inputs: &[PathBuf], traces: bool, metric: Metric) -> Result<Vec<Chart>, FilmError> {
     let loaded: Vec<(PathBuf, Metadata)> = inputs
         .iter()
         .map(|path| Ok((path.clone(), metadata(path)?)))
@@ -83,14 +132,16 @@ fn load_series(
             message,
         };
         if m.errors.is_empty() {
-            return Err(invalid(
-                "has no error series (render it with --reference)".into(),
-            ));
+            return Err(invalid(format!(
+                "has no error series (render it with {})",
+                OptionName("reference")
+            )));
         }
         if traces && m.traces.is_empty() {
-            return Err(invalid(
-                "has no trace windows (render it with --trace)".into(),
-            ));
+            return Err(invalid(format!(
+                "has no trace windows (render it with {})",
+                OptionName("trace")
+            )));
         }
         if traces && m.traces != first.traces {
             return Err(invalid(format!(
@@ -105,35 +156,53 @@ fn load_series(
         Vec::new()
     };
     let labels = labels(&loaded);
-    let series = loaded
-        .into_iter()
-        .zip(labels)
-        .map(|((_, m), label)| {
-            let windows = if traces { m.traces.len() } else { 0 };
-            let mut points = vec![Vec::new(); windows + 1];
-            for e in &m.errors {
-                points[0].push((e.seconds, e.rmse));
-                for (w, [_, rmse]) in e.traces.iter().enumerate().take(windows) {
-                    points[w + 1].push((e.seconds, *rmse));
-                }
-            }
-            Series { label, points }
+    let charts = (0..=windows.len())
+        .map(|chart| Chart {
+            title: match chart {
+                0 => "whole image".to_string(),
+                w => format!("trace window {} ({})", w - 1, windows[w - 1]),
+            },
+            x_label: "time [s]".into(),
+            y_label: metric.label().into(),
+            series: loaded
+                .iter()
+                .zip(&labels)
+                .map(|((_, m), label)| ChartSeries {
+                    label: label.clone(),
+                    points: m
+                        .errors
+                        .iter()
+                        .map(|e| {
+                            let errors = match chart {
+                                0 => [e.mae, e.rmse],
+                                w => e.traces[w - 1],
+                            };
+                            (e.seconds, metric.of(errors))
+                        })
+                        .collect(),
+                })
+                .collect(),
         })
         .collect();
-    Ok((series, windows))
+    Ok(charts)
 }
 
 /// Draws the convergence chart of `inputs` (vmerge renders made with `--reference`) into
-/// `out`: SVG when its extension is `.svg`, PNG otherwise. Each input is one series, RMS error
+/// `out`: SVG when its extension is `.svg`, PNG otherwise. Each input is one series, `metric`
 /// against render time on log-log axes, labelled with its technique and radius.
 ///
 /// With `traces`, the same file holds a grid of charts: the whole image first, then one chart
 /// per trace window (the inputs must share their windows).
-pub fn plot(out: &Path, inputs: &[PathBuf], traces: bool) -> Result<(), FilmError> {
-    let (series, windows) = load_series(inputs, traces)?;
-    let charts = 1 + windows.len();
-    let columns = (charts as f64).sqrt().ceil() as u32;
-    let rows = (charts as u32).div_ceil(columns);
+pub fn plot(out: &Path, inputs: &[PathBuf], traces: bool, metric: Metric) -> Result<(), FilmError> {
+    draw_charts(out, &load_charts(inputs, traces, metric)?)
+}
+
+/// Draws `charts` in a grid into `out` (SVG when its extension is `.svg`, PNG otherwise), each
+/// on log-log axes.
+pub fn draw_charts(out: &Path, charts: &[Chart]) -> Result<(), FilmError> {
+    let count = charts.len().max(1);
+    let columns = (count as f64).sqrt().ceil() as u32;
+    let rows = (count as u32).div_ceil(columns);
     let size = (CHART.0 * columns, CHART.1 * rows);
     let svg = out
         .extension()
@@ -146,14 +215,14 @@ pub fn plot(out: &Path, inputs: &[PathBuf], traces: bool) -> Result<(), FilmErro
         let mut text = String::new();
         {
             let root = SVGBackend::with_string(&mut text, size).into_drawing_area();
-            draw(&root, &series, &windows, (rows, columns)).map_err(err)?;
+            draw(&root, charts, (rows, columns)).map_err(err)?;
         }
         atomic_write(out, |f| f.write_all(text.as_bytes())).map_err(|e| err(e.to_string()))
     } else {
         let mut buffer = vec![0u8; size.0 as usize * size.1 as usize * 3];
         {
             let root = BitMapBackend::with_buffer(&mut buffer, size).into_drawing_area();
-            draw(&root, &series, &windows, (rows, columns)).map_err(err)?;
+            draw(&root, charts, (rows, columns)).map_err(err)?;
         }
         atomic_write(out, |f| {
             let mut encoder = ::png::Encoder::new(f, size.0, size.1);
@@ -169,27 +238,23 @@ pub fn plot(out: &Path, inputs: &[PathBuf], traces: bool) -> Result<(), FilmErro
 
 fn draw<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
-    series: &[Series],
-    windows: &[TraceWindow],
+    charts: &[Chart],
     (rows, columns): (u32, u32),
 ) -> Result<(), String> {
     register_font()?;
     root.fill(&WHITE).map_err(|e| e.to_string())?;
     let areas = root.split_evenly((rows as usize, columns as usize));
-    for (chart, area) in areas.iter().enumerate().take(1 + windows.len()) {
-        let title = match chart {
-            0 => "whole image".to_string(),
-            w => format!("trace window {} ({})", w - 1, windows[w - 1]),
-        };
-        let all: Vec<(f64, f64)> = series
+    for (chart, area) in charts.iter().zip(&areas) {
+        let all: Vec<(f64, f64)> = chart
+            .series
             .iter()
-            .flat_map(|s| s.points[chart].iter().copied())
+            .flat_map(|s| s.points.iter().copied())
             .filter(|&(t, e)| t > 0.0 && e > 0.0)
             .collect();
         let (t0, t1) = bounds(all.iter().map(|p| p.0));
         let (e0, e1) = bounds(all.iter().map(|p| p.1));
         let mut ctx = ChartBuilder::on(area)
-            .caption(&title, (FONT, 20))
+            .caption(&chart.title, (FONT, 20))
             .margin(10)
             .x_label_area_size(40)
             .y_label_area_size(70)
@@ -199,17 +264,18 @@ fn draw<DB: DrawingBackend>(
             )
             .map_err(|e| e.to_string())?;
         ctx.configure_mesh()
-            .x_desc("time [s]")
-            .y_desc("RMS error")
+            .x_desc(&chart.x_label)
+            .y_desc(&chart.y_label)
             .x_label_formatter(&|v| tick(*v))
             .y_label_formatter(&|v| tick(*v))
             .label_style((FONT, 14))
             .axis_desc_style((FONT, 16))
             .draw()
             .map_err(|e| e.to_string())?;
-        for (i, s) in series.iter().enumerate() {
+        for (i, s) in chart.series.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
-            let points: Vec<(f64, f64)> = s.points[chart]
+            let points: Vec<(f64, f64)> = s
+                .points
                 .iter()
                 .copied()
                 .filter(|&(t, e)| t > 0.0 && e > 0.0)

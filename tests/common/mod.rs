@@ -4,8 +4,9 @@
 
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext, Technique};
-use vmerge::render::RenderOptions;
+use vmerge::integrator::{self, RenderContext};
+use vmerge::options::RenderOptions;
+use vmerge::options::Technique;
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
 pub fn load(name: &str) -> Scene {
@@ -13,6 +14,7 @@ pub fn load(name: &str) -> Scene {
     let options = LoadOptions {
         accel: AccelKind::default_kind(),
         lenient: false,
+        shading_normals: true,
     };
     scene::load(path.as_ref(), &options).unwrap_or_else(|e| panic!("{e}"))
 }

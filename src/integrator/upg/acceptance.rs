@@ -25,9 +25,6 @@ use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
 use thiserror::Error;
 
-/// The trial cap the command line uses unless told otherwise.
-pub const DEFAULT_MAX_TRIALS: u32 = 10_000;
-
 /// A bound holding at least this share of a lobe's probability saves too few trials to be
 /// worth its own sampler; the whole lobe is sampled instead.
 const WHOLE_LOBE_SHARE: f64 = 0.9;
@@ -279,8 +276,12 @@ impl Component {
 #[derive(Clone, Debug)]
 pub struct AngularBound<'a> {
     bsdf: Bsdf<'a>,
-    /// The ray origin, offset off the surface to the side the BSDF samples.
+    /// The ray origin, offset off the surface to the side the BSDF samples; on a surface with
+    /// a shading normal the vertex itself, each trial offsetting it to its own side.
     origin: Vec3,
+    /// The geometric normal where each trial offsets its own origin (shading normals), `None`
+    /// where one origin serves all.
+    per_trial_offset: Option<Vec3>,
     target: Vec3,
     radius: f32,
     components: [Component; 2],
@@ -308,9 +309,23 @@ impl<'a> AngularBound<'a> {
         if lobes.as_slice().is_empty() {
             return Err(AcceptanceError::DeltaBsdf);
         }
-        // Every direction the BSDF keeps lies on the side of its frame's z, so this is the
-        // origin `Ray::spawn` gives each of them; the cone is taken from it.
-        let origin = offset_ray_origin(position, ng, bsdf.frame().z);
+        // Every direction the BSDF keeps lies on the side of its frame's z. On a flat surface
+        // that is one side of the geometric plane, so this is the origin `Ray::spawn` gives each
+        // of them, and the cone is taken from it. With a shading normal the kept hemisphere
+        // crosses the geometric plane: each trial offsets the vertex to the side of its own
+        // direction, as `Ray::spawn` would, and the cone is taken from the vertex itself with
+        // the radius grown by twice the offset (once suffices, the rest covers rounding), so it
+        // holds every direction that can succeed from either origin.
+        let (origin, per_trial_offset, cone_radius) = if bsdf.is_smooth() {
+            let offset = (offset_ray_origin(position, ng, ng) - position).length();
+            (position, Some(ng), radius as f64 + 2.0 * offset as f64)
+        } else {
+            (
+                offset_ray_origin(position, ng, bsdf.frame().z),
+                None,
+                radius as f64,
+            )
+        };
         let mut components = [Component {
             x: DVec3::X,
             y: DVec3::Y,
@@ -325,7 +340,7 @@ impl<'a> AngularBound<'a> {
         let (mut p_bound, mut whole) = (0.0, true);
         for (lobe, slot) in lobes.as_slice().iter().zip(components.iter_mut()) {
             let (component, p_b) =
-                Component::new(lobe, origin.as_dvec3(), target.as_dvec3(), radius as f64);
+                Component::new(lobe, origin.as_dvec3(), target.as_dvec3(), cone_radius);
             whole &= matches!(component.polar, Polar::Whole) && p_b == 1.0;
             let mass = lobe.weight as f64 * p_b;
             p_bound += mass;
@@ -338,6 +353,7 @@ impl<'a> AngularBound<'a> {
         Ok(AngularBound {
             bsdf: bsdf.clone(),
             origin,
+            per_trial_offset,
             target,
             radius,
             components,
@@ -358,7 +374,8 @@ impl<'a> AngularBound<'a> {
         self.whole
     }
 
-    /// The ray origin: the vertex offset off its surface on the side the BSDF samples.
+    /// The ray origin: the vertex offset off its surface on the side the BSDF samples (with a
+    /// shading normal, the vertex itself; each trial offsets it to the side it goes).
     pub fn origin(&self) -> Vec3 {
         self.origin
     }
@@ -389,7 +406,11 @@ impl<'a> AngularBound<'a> {
         // trial sequence.
         let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
         let dir = self.sample_direction(u)?;
-        let o = (self.origin - self.target).as_dvec3();
+        let origin = match self.per_trial_offset {
+            Some(ng) => offset_ray_origin(self.origin, ng, dir),
+            None => self.origin,
+        };
+        let o = (origin - self.target).as_dvec3();
         let w = dir.as_dvec3();
         let a = w.length_squared();
         let half_b = o.dot(w);
@@ -400,7 +421,7 @@ impl<'a> AngularBound<'a> {
         }
         let t_exit = (-half_b + disc.sqrt()) / a;
         (t_exit > 0.0).then_some(Ray {
-            origin: self.origin,
+            origin,
             dir,
             tmin: 0.0,
             tmax: t_exit as f32,
@@ -461,7 +482,7 @@ impl Default for Estimator {
     fn default() -> Self {
         Estimator {
             packet: PacketWidth::One,
-            max_trials: DEFAULT_MAX_TRIALS,
+            max_trials: crate::options::RenderOptions::DEFAULT.upg_max_trials,
         }
     }
 }

@@ -1,3 +1,108 @@
-//! Unbiased photon gathering (000 sec. 2.4.3): merges whose acceptance probability is estimated.
+//! Unbiased photon gathering (000 secs. 2.4.3-2.4.6): merges made by an explicit connection from
+//! the merge vertex's neighbour on the gathering side, divided by the acceptance probability
+//! that tentative rays estimate without bias.
+//!
+//! - `acceptance.rs`: the estimate of 1/p_acc (000 eqs. 2.56-2.66), with its angular bounds;
+//! - `merge.rs`: the merges from the light side (`upg`) and from the camera side
+//!   (`upg-camera`), gathered and estimated together per eye vertex;
+//! - here: [`Deferred`], the weight term of a merge that only the sub-path's next vertex can
+//!   decide, and [`UpgCounters`], the tentative-ray work.
+
+use super::mis::{Arrival, VcmVertex, VcmWeights};
 
 pub mod acceptance;
+pub mod merge;
+
+/// A merge at a sub-path's previous vertex gathered from the other side (VmHere::Deferred):
+/// whether it is a technique depends on the vertex reached next (the tentative rays would leave
+/// from it), and its clamped eta on the pdf with which that vertex samples the merge vertex,
+/// known only once a use of the vertex fixes its reverse direction (000 eqs. 2.81-2.82).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Deferred {
+    /// The merge's factor in d^VC before its eta, carried like d^VC's other terms; 0 when none.
+    vm: f32,
+    /// mis(|cos| / d^2) of the merge vertex seen from the current vertex.
+    g: f32,
+}
+
+impl Deferred {
+    pub const NONE: Deferred = Deferred { vm: 0.0, g: 0.0 };
+
+    /// Leaving a merge vertex whose merge is deferred: `ratio` is what [`VcmWeights::scatter`]
+    /// returned, `cos_out` the |cos| of the sampled direction there.
+    pub fn new(w: &VcmWeights, ratio: f32, cos_out: f32) -> Self {
+        Deferred {
+            vm: ratio,
+            g: w.mis(cos_out),
+        }
+    }
+
+    /// Carried across a segment, like d^VC (001 eq. (35)); the merge vertex is sampled from the
+    /// far end, so its area factor takes the distance.
+    pub fn arrive(&mut self, a: Arrival) {
+        self.vm *= a.inv_cos;
+        self.g /= a.d2;
+    }
+
+    /// On arrival: the merge is a technique only if the vertex reached is a non-delta surface
+    /// vertex the tentative rays can leave from.
+    pub fn keep_if(&mut self, surface: bool) {
+        if !surface {
+            self.vm = 0.0;
+        }
+    }
+
+    /// `v` with the merge's terms added once `rev_pdf_w`, the pdf with which the current vertex
+    /// samples the merge vertex, gives its gathering-side area pdf: eta_j in d^VC (001 eq. (35),
+    /// 000 eq. 2.81) and 1 in d^VM (001 eq. (36)).
+    pub fn settle(&self, w: &VcmWeights, v: VcmVertex, rev_pdf_w: f32) -> VcmVertex {
+        if self.vm == 0.0 {
+            return v;
+        }
+        let pdf = w.mis(rev_pdf_w) * self.g;
+        VcmVertex {
+            d_vc: v.d_vc + self.vm * w.eta(1.0 / pdf),
+            d_vm: v.d_vm + self.vm,
+            ..v
+        }
+    }
+}
+
+/// The tentative-ray work of unbiased photon gathering (000 Table 3.2).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct UpgCounters {
+    /// Merges whose 1/p_acc was estimated.
+    pub merges: u64,
+    /// Bernoulli trials, and the tentative rays traced for them (a trial whose direction
+    /// misses the gathering sphere needs no ray).
+    pub trials: u64,
+    pub tentative_rays: u64,
+    /// Merges dropped at the trial cap.
+    pub capped: u64,
+}
+
+impl std::ops::Add for UpgCounters {
+    type Output = UpgCounters;
+    fn add(self, other: UpgCounters) -> UpgCounters {
+        UpgCounters {
+            merges: self.merges + other.merges,
+            trials: self.trials + other.trials,
+            tentative_rays: self.tentative_rays + other.tentative_rays,
+            capped: self.capped + other.capped,
+        }
+    }
+}
+
+impl UpgCounters {
+    /// Metadata entries: the thesis reports about 2.81 trials per merge (000 sec. 2.4.3).
+    pub fn statistics(&self) -> Vec<(String, String)> {
+        let per_merge = |n: u64| format!("{:.3}", n as f64 / self.merges.max(1) as f64);
+        vec![
+            ("upg_merges".into(), self.merges.to_string()),
+            ("upg_trials_per_merge".into(), per_merge(self.trials)),
+            ("upg_rays_per_merge".into(), per_merge(self.tentative_rays)),
+            ("upg_tentative_rays".into(), self.tentative_rays.to_string()),
+            ("upg_capped_merges".into(), self.capped.to_string()),
+        ]
+    }
+}

@@ -1,0 +1,176 @@
+//! What shading normals and textures cost: the conference room (331k triangles, from
+//! ../shared/scenes, skipped when absent) rendered flat, with shading normals, with a texture
+//! on every material, and with both. The room's OBJ has neither normals nor uvs, so the bench
+//! gives it area-weighted vertex normals and planar uvs (one texture period per 100 units), and
+//! each material a texture of its own kd with a faint pattern (+-1%), so the light paths stay
+//! those of the flat scene and the cost is the lookups': 64 x 64 texels (all 35 fit in the
+//! caches) or 512 x 512 (110 MB, where a lookup waits for memory). Each round renders one iteration of each variant in turn; the figures
+//! are the medians over rounds of the time of each variant over the flat one's in the same
+//! round. Run: `cargo bench --bench surfaces`.
+
+use glam::{Vec2, Vec3};
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+use vmerge::accel::AccelKind;
+use vmerge::bsdf::Albedo;
+use vmerge::color::Rgb;
+use vmerge::integrator::{self, RenderContext};
+use vmerge::options::{RenderOptions, Technique};
+use vmerge::scene::{self, Camera, LoadOptions, MaterialTextures, MeshShading, Scene};
+use vmerge::texture::Texture;
+
+const SIZE: u32 = 256;
+const ROUNDS: usize = 7;
+
+fn vertex_normals(parts: &scene::SceneParts) -> MeshShading {
+    let g = &parts.geometry;
+    let mut normals = vec![Vec3::ZERO; g.positions.len()];
+    for t in &g.triangles {
+        let [a, b, c] = t.map(|i| g.positions[i as usize]);
+        // The cross product's length is twice the area: area-weighted.
+        let n = (b - a).cross(c - a);
+        for &i in t {
+            normals[i as usize] += n;
+        }
+    }
+    MeshShading {
+        normals: normals.into_iter().map(Vec3::normalize_or_zero).collect(),
+        uvs: g
+            .positions
+            .iter()
+            .map(|p| Vec2::new(p.x + 0.5 * p.y, p.z - 0.5 * p.y) / 100.0)
+            .collect(),
+        triangle_normals: g.triangles.clone(),
+        triangle_uvs: g.triangles.clone(),
+    }
+}
+
+fn texture(kd: Rgb, n: u32) -> Texture {
+    let texels = (0..n * n)
+        .map(|i| {
+            let (x, y) = (i % n, i / n);
+            kd * (0.99 + 0.02 * ((x ^ y) % 7) as f32 / 6.0)
+        })
+        .collect();
+    Texture::new(n, n, texels).expect("a square texture")
+}
+
+/// The room with or without shading normals, and with textures of `texture_size` texels a
+/// side (0: none).
+fn variant(path: &Path, normals: bool, texture_size: u32) -> Scene {
+    let textured = texture_size > 0;
+    let options = LoadOptions {
+        accel: AccelKind::default_kind(),
+        lenient: true,
+        shading_normals: true,
+    };
+    let mut parts = scene::load_parts(path, &options).expect("the conference room loads");
+    let shading = vertex_normals(&parts);
+    parts.shading = MeshShading {
+        triangle_normals: if normals {
+            shading.triangle_normals
+        } else {
+            Vec::new()
+        },
+        triangle_uvs: if textured {
+            shading.triangle_uvs
+        } else {
+            Vec::new()
+        },
+        ..shading
+    };
+    if textured {
+        parts.textures = parts
+            .materials
+            .iter()
+            .map(|m| Arc::new(texture(Albedo::of(&m.kind).kd, texture_size)))
+            .collect();
+        parts.material_textures = (0..parts.materials.len() as u32)
+            .map(|i| MaterialTextures {
+                kd: Some(i),
+                ks: None,
+            })
+            .collect();
+    }
+    Scene::build(parts, options.accel).expect("the conference room builds")
+}
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+fn main() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/scenes/conference.toml");
+    if !path.exists()
+        || !Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../shared/scenes/conference/conference.obj")
+            .exists()
+    {
+        eprintln!("skipping: the conference room is absent");
+        return;
+    }
+    let variants = [
+        ("flat", false, 0),
+        ("shading normals", true, 0),
+        ("textures 64^2", false, 64),
+        ("textures 512^2", false, 512),
+        ("normals + 512^2", true, 512),
+    ];
+    let names: Vec<&str> = variants.iter().map(|v| v.0).collect();
+    let scenes: Vec<Scene> = variants
+        .iter()
+        .map(|&(_, n, t)| variant(&path, n, t))
+        .collect();
+    let texture_bytes: usize = scenes[3].textures.iter().map(|t| t.bytes()).sum();
+    println!(
+        "shading data {:.1} MB (normals, uvs and their indices), textures {:.1} MB",
+        scenes[4].shading.bytes() as f64 / 1e6,
+        texture_bytes as f64 / 1e6
+    );
+    for technique in [Technique::Pt, Technique::Bpt] {
+        let options = RenderOptions {
+            technique,
+            resolution: Some([SIZE, SIZE]),
+            ..Default::default()
+        };
+        let mut integrators: Vec<_> = scenes
+            .iter()
+            .map(|scene| {
+                let camera = Camera::new(scene.camera(None).expect("camera"), SIZE, SIZE);
+                integrator::create(RenderContext {
+                    scene,
+                    camera,
+                    options: &options,
+                })
+            })
+            .collect();
+        let mut frame = vec![Rgb::BLACK; (SIZE * SIZE) as usize];
+        let mut ratios = vec![Vec::new(); names.len()];
+        let mut seconds = vec![Vec::new(); names.len()];
+        for round in 0..=ROUNDS {
+            let mut times = Vec::new();
+            for integrator in integrators.iter_mut() {
+                frame.fill(Rgb::BLACK);
+                let start = Instant::now();
+                integrator.render_iteration(round as u64, &mut frame);
+                times.push(start.elapsed().as_secs_f64());
+            }
+            // Round 0 warms the caches and is left out.
+            if round > 0 {
+                for (i, t) in times.iter().enumerate() {
+                    ratios[i].push(t / times[0]);
+                    seconds[i].push(*t);
+                }
+            }
+        }
+        for (i, name) in names.iter().enumerate() {
+            println!(
+                "{technique:?} {SIZE}x{SIZE}: {name:16} {:.3} s per iteration, {:.3} x flat",
+                median(seconds[i].clone()),
+                median(ratios[i].clone())
+            );
+        }
+    }
+}

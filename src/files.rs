@@ -1,0 +1,287 @@
+//! What vmerge reads and where it writes, checked before any work: inputs are regular files
+//! (never a FIFO, which would block, nor a device or a directory) within a size limit per
+//! kind, and an output lies in an existing, writable directory, is not a directory and is not
+//! one of the render's inputs.
+
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use thiserror::Error;
+
+/// A file that cannot be used, and why.
+#[derive(Debug, Error, PartialEq)]
+#[error("{}: {message}", show(file))]
+pub struct FileError {
+    pub file: PathBuf,
+    pub message: String,
+}
+
+/// The kinds of input, each with its size limit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    Scene,
+    Obj,
+    Mtl,
+    Exr,
+    /// A pbrt-v4 scene file (inline meshes can make it large).
+    Pbrt,
+    Ply,
+}
+
+impl Kind {
+    /// The largest file of the kind that is read: far above any real one, low enough that
+    /// reading it cannot exhaust memory by itself.
+    pub fn limit(self) -> u64 {
+        const MIB: u64 = 1 << 20;
+        match self {
+            Kind::Scene => 16 * MIB,
+            Kind::Mtl => 64 * MIB,
+            Kind::Obj | Kind::Pbrt | Kind::Ply => 4096 * MIB,
+            Kind::Exr => 8192 * MIB,
+        }
+    }
+
+    /// The kind with its article: "a scene file", "an OBJ file".
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Scene => "a scene file",
+            Kind::Obj => "an OBJ file",
+            Kind::Pbrt => "a pbrt scene file",
+            Kind::Ply => "a PLY file",
+            Kind::Mtl => "an MTL file",
+            Kind::Exr => "an EXR file",
+        }
+    }
+}
+
+/// A path as messages print it; an empty one would otherwise print as nothing at all.
+pub fn show(path: &Path) -> String {
+    if path.as_os_str().is_empty() {
+        "(empty path)".into()
+    } else {
+        path.display().to_string()
+    }
+}
+
+fn error(file: &Path, message: impl Into<String>) -> FileError {
+    FileError {
+        file: file.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+fn describe(kind: std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if kind.is_dir() {
+        "a directory"
+    } else if kind.is_fifo() {
+        "a named pipe"
+    } else if kind.is_char_device() || kind.is_block_device() {
+        "a device"
+    } else if kind.is_socket() {
+        "a socket"
+    } else {
+        "not a regular file"
+    }
+}
+
+/// Checks that `path` is a regular file within the kind's size limit; returns its size.
+pub fn check_input(path: &Path, kind: Kind) -> Result<u64, FileError> {
+    if path.as_os_str().is_empty() {
+        return Err(error(
+            path,
+            format!("the path is empty where {} should be", kind.name()),
+        ));
+    }
+    // `metadata` follows symbolic links and, unlike opening, does not block on a FIFO.
+    let meta = std::fs::metadata(path).map_err(|e| error(path, format!("cannot read: {e}")))?;
+    check_metadata(path, kind, &meta)
+}
+
+fn check_metadata(path: &Path, kind: Kind, meta: &std::fs::Metadata) -> Result<u64, FileError> {
+    if !meta.is_file() {
+        return Err(error(
+            path,
+            format!(
+                "is {}, not {} (only regular files are read)",
+                describe(meta.file_type()),
+                kind.name()
+            ),
+        ));
+    }
+    if meta.len() > kind.limit() {
+        return Err(error(
+            path,
+            format!(
+                "is {} bytes, more than the {} MiB {} may have",
+                meta.len(),
+                kind.limit() >> 20,
+                kind.name()
+            ),
+        ));
+    }
+    Ok(meta.len())
+}
+
+/// Reads a whole input file after [`check_input`]; reads no more than the limit even if the
+/// file grows meanwhile.
+pub fn read(path: &Path, kind: Kind) -> Result<Vec<u8>, FileError> {
+    check_input(path, kind)?;
+    let file = File::open(path).map_err(|e| error(path, format!("cannot read: {e}")))?;
+    // The file opened may not be the one checked (it was replaced in between).
+    let meta = file
+        .metadata()
+        .map_err(|e| error(path, format!("cannot read: {e}")))?;
+    let size = check_metadata(path, kind, &meta)?;
+    let mut bytes = Vec::with_capacity(size as usize);
+    file.take(kind.limit() + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| error(path, format!("cannot read: {e}")))?;
+    if bytes.len() as u64 > kind.limit() {
+        return Err(error(
+            path,
+            format!(
+                "grew past the {} MiB limit while being read",
+                kind.limit() >> 20
+            ),
+        ));
+    }
+    Ok(bytes)
+}
+
+/// Reads a text input; invalid UTF-8 is an error naming the line.
+pub fn read_text(path: &Path, kind: Kind) -> Result<String, FileError> {
+    let bytes = read(path, kind)?;
+    String::from_utf8(bytes).map_err(|e| {
+        let good = &e.as_bytes()[..e.utf8_error().valid_up_to()];
+        let line = good.iter().filter(|&&b| b == b'\n').count() + 1;
+        error(path, format!("line {line}: not UTF-8 text"))
+    })
+}
+
+/// At most `max` characters of `text` (one line of it), with an ellipsis when cut: long input
+/// lines are quoted as a readable excerpt.
+pub fn excerpt(text: &str, max: usize) -> String {
+    let line = text.lines().next().unwrap_or("");
+    let mut chars = line.chars();
+    let head: String = chars.by_ref().take(max).collect();
+    if chars.next().is_some() || line.len() < text.trim_end().len() {
+        format!("{head}...")
+    } else {
+        head
+    }
+}
+
+/// Shortens every line of a message to `max` characters (parsers quote whole input lines).
+pub fn shorten_lines(message: &str, max: usize) -> String {
+    message
+        .lines()
+        .map(|l| excerpt(l, max))
+        .collect::<Vec<_>>()
+        .join("\n")
+}
+
+/// The path with its directory resolved, whether or not the file itself exists yet, so that
+/// two spellings of one file compare equal.
+fn resolved(path: &Path) -> Option<PathBuf> {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return Some(p);
+    }
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    Some(std::fs::canonicalize(dir).ok()?.join(path.file_name()?))
+}
+
+/// Checks that `output` can be written: a file name in an existing, writable directory, not a
+/// directory, and none of `inputs` (which writing would destroy).
+pub fn check_output(output: &Path, inputs: &[PathBuf]) -> Result<(), FileError> {
+    let fail = |message: String| Err(error(output, message));
+    if output.as_os_str().is_empty() {
+        return fail("no output named (the path is empty)".into());
+    }
+    let Some(name) = output.file_name() else {
+        return fail("does not name a file".into());
+    };
+    if output.is_dir() {
+        return fail("is a directory; name a file in it".into());
+    }
+    if let Ok(meta) = std::fs::metadata(output) {
+        if !meta.is_file() {
+            return fail(format!(
+                "is {}; the output must be a regular file",
+                describe(meta.file_type())
+            ));
+        }
+    }
+    let dir = match output.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return fail(format!("the directory {} does not exist", show(dir)));
+    }
+    let target = resolved(output);
+    for input in inputs {
+        if target.is_some() && resolved(input) == target {
+            return fail(format!(
+                "is one of the render's inputs ({}); writing would destroy it",
+                show(input)
+            ));
+        }
+    }
+    // A probe, where checking permission bits would miss read-only mounts and /proc.
+    let probe = dir.join(format!(
+        ".{}.probe-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    match File::create(&probe) {
+        Ok(_) => {
+            // Best effort: a probe left behind is harmless and named after the output.
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        Err(e) => fail(format!("cannot write into {}: {e}", show(dir))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn excerpts_cut_long_lines() {
+        assert_eq!(excerpt("short", 10), "short");
+        assert_eq!(
+            excerpt(&"x".repeat(50), 10),
+            format!("{}...", "x".repeat(10))
+        );
+        assert_eq!(excerpt("one\ntwo", 10), "one...");
+    }
+
+    #[test]
+    fn only_regular_files_are_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let err = read(dir.path(), Kind::Scene).unwrap_err();
+        assert!(err.message.contains("a directory"), "{err}");
+        let err = read(Path::new("/dev/zero"), Kind::Mtl).unwrap_err();
+        assert!(err.message.contains("a device"), "{err}");
+        let err = read(Path::new(""), Kind::Obj).unwrap_err();
+        assert!(err.to_string().starts_with("(empty path)"), "{err}");
+    }
+
+    #[test]
+    fn outputs_must_not_be_inputs_or_directories() {
+        let dir = tempfile::tempdir().unwrap();
+        let input = dir.path().join("scene.toml");
+        std::fs::write(&input, "").unwrap();
+        let again = dir.path().join(".").join("scene.toml");
+        assert!(check_output(&again, std::slice::from_ref(&input)).is_err());
+        assert!(check_output(dir.path(), &[]).is_err());
+        assert!(check_output(&dir.path().join("missing/out.exr"), &[]).is_err());
+        assert!(check_output(&dir.path().join("out.exr"), &[input]).is_ok());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+}

@@ -1,0 +1,158 @@
+//! The sub-path state of the vertex-merging family (SmallVCM's SubPathState and PathVertex):
+//! what `vcm.rs` carries while tracing and stores of light sub-paths, and what the UPG merges
+//! (`upg/merge.rs`) read back.
+
+use super::mis::{VcmVertex, VcmWeights};
+use super::upg::Deferred;
+use super::IterationStats;
+use crate::accel::Ray;
+use crate::bsdf::{Bsdf, Normals, TransportMode};
+use crate::color::Rgb;
+use crate::film::add_sample;
+use crate::scene::{Scene, SurfaceHit};
+use glam::{Vec2, Vec3};
+
+/// A stored light sub-path vertex: everything a connection or a merge needs.
+#[derive(Clone, Copy, Debug)]
+pub struct LightVertex {
+    pub position: Vec3,
+    /// Geometric normal.
+    pub ng: Vec3,
+    /// Shading normal and texture coordinates, for the BSDF there.
+    pub ns: Vec3,
+    pub uv: Vec2,
+    /// Unit direction back towards the previous vertex of the light sub-path.
+    pub wo: Vec3,
+    pub throughput: Rgb,
+    pub material: u32,
+    /// Segments from the light to this vertex.
+    pub path_length: u32,
+    pub mis: VcmVertex,
+    /// `upg-camera`'s merge at the previous vertex, awaiting this one's reverse pdf.
+    pub deferred: Deferred,
+    /// The density factor of a merge here (002; 1 without the density map).
+    pub rho: f32,
+    /// The previous vertex of the sub-path is a non-delta surface vertex, stored just before
+    /// this one.
+    pub after_surface: bool,
+}
+
+impl LightVertex {
+    /// The vertex's BSDF, as the light sub-path scattered there.
+    pub fn bsdf<'s>(&self, scene: &'s Scene) -> Option<Bsdf<'s>> {
+        let normals = Normals {
+            ng: self.ng,
+            ns: self.ns,
+        };
+        scene.bsdf(
+            self.material,
+            normals,
+            self.uv,
+            self.wo,
+            TransportMode::Importance,
+        )
+    }
+
+    /// The MIS quantities once a use of the vertex fixes `rev_pdf_w`, the pdf with which it
+    /// samples its predecessor.
+    pub fn mis_at(&self, w: &VcmWeights, rev_pdf_w: f32) -> VcmVertex {
+        self.deferred.settle(w, self.mis, rev_pdf_w)
+    }
+}
+
+/// The state of a sub-path being traced.
+#[derive(Clone, Copy, Debug)]
+pub struct SubPath {
+    pub ray: Ray,
+    pub throughput: Rgb,
+    pub path_length: u32,
+    /// Light sub-paths: started on a finite light (distance terms apply to the first segment).
+    pub finite_light: bool,
+    /// Eye sub-paths: every scattering so far was a delta lobe.
+    pub specular: bool,
+    /// The vertex the ray left from is a non-delta surface vertex.
+    pub prev_surface: bool,
+    pub mis: VcmVertex,
+    /// A UPG merge at the previous vertex gathered from the other side (`upg` on eye
+    /// sub-paths, `upg-camera` on light sub-paths).
+    pub deferred: Deferred,
+    /// The density factor rho of a merge at the current vertex and its 1 / k (002; 1 and 0
+    /// without the density map).
+    pub density: (f32, f32),
+}
+
+impl SubPath {
+    /// [`LightVertex::mis_at`] of the sub-path's current vertex.
+    pub fn mis_at(&self, w: &VcmWeights, rev_pdf_w: f32) -> VcmVertex {
+        self.deferred.settle(w, self.mis, rev_pdf_w)
+    }
+}
+
+/// The last eye vertex, kept for `upg-camera`'s merges at the next one.
+#[derive(Clone)]
+pub struct EyeVertex<'b> {
+    pub hit: SurfaceHit,
+    pub bsdf: Bsdf<'b>,
+    /// Throughput and MIS quantities on arrival, before scattering on.
+    pub throughput: Rgb,
+    pub mis: VcmVertex,
+    pub prev_surface: bool,
+    pub path_length: u32,
+}
+
+/// What one task of the light pass produces: its vertices, where each of its paths ends, its
+/// camera splats and counters.
+#[derive(Default)]
+pub struct LightChunk {
+    pub vertices: Vec<LightVertex>,
+    pub ends: Vec<u32>,
+    pub splats: Vec<(usize, Rgb)>,
+    pub stats: IterationStats,
+}
+
+/// The light sub-paths of one iteration: every stored vertex, path after path.
+pub struct LightPaths {
+    pub vertices: Vec<LightVertex>,
+    /// Where each path's vertices begin, and one past the last path's.
+    path_ends: Vec<usize>,
+}
+
+impl LightPaths {
+    /// Concatenates the chunks in order (so the result does not depend on the threads), adding
+    /// their camera splats to `frame` and their counters to `stats`.
+    pub fn concatenate(
+        chunks: Vec<LightChunk>,
+        frame: &mut [Rgb],
+        stats: &mut IterationStats,
+    ) -> Self {
+        let mut vertices = Vec::new();
+        let mut path_ends = Vec::with_capacity(frame.len() + 1);
+        path_ends.push(0usize);
+        for chunk in chunks {
+            let base = vertices.len();
+            path_ends.extend(chunk.ends.iter().map(|&e| base + e as usize));
+            vertices.extend(chunk.vertices);
+            for (pixel, value) in chunk.splats {
+                add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
+            }
+            stats.rays += chunk.stats.rays;
+            stats.dropped_samples += chunk.stats.dropped_samples;
+        }
+        LightPaths {
+            vertices,
+            path_ends,
+        }
+    }
+
+    /// The light sub-path the eye sub-path of `pixel` connects to: the one traced for it when
+    /// there is one per pixel, the paths taken in turn when there are fewer, and each pixel's own
+    /// when there are more (the rest are merged and splatted only). Every eye sub-path connects
+    /// to one light sub-path either way (n_VC = 1).
+    pub fn for_pixel(&self, pixel: usize) -> &[LightVertex] {
+        let path = pixel % (self.path_ends.len() - 1).max(1);
+        match self.path_ends.get(path..path + 2) {
+            Some(&[start, end]) => &self.vertices[start..end],
+            _ => &[],
+        }
+    }
+}

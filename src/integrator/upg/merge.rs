@@ -1,0 +1,309 @@
+//! UPG's merges (000 sec. 2.4.3): instead of a density estimate, the light vertex and the eye
+//! vertex within r of each other are joined by an explicit connection from the merge vertex's
+//! neighbour on the gathering side (000 eq. 2.67), and the connection's pdf holds 1/p_acc,
+//! which tentative rays from that neighbour estimate (`acceptance.rs`, 000 eq. 2.65). The MIS
+//! weight is VCM's with the clamped acceptance (000 eqs. 2.80-2.82): the gathering side's
+//! quantities are carried across the connection to the merge vertex, and the merge is weighed
+//! there like a density-estimate merge with its own eta_j.
+
+use super::super::connection::Connection;
+use super::super::mis::{Gather, Neighbour, VcmVertex, VcmWeights, VmHere, NO_DENSITY};
+use super::super::subpath::{EyeVertex, LightVertex, SubPath};
+use super::super::IterationStats;
+use super::acceptance::{AngularBound, Estimator, Outcome, StoredVerticesOnly, TentativeTracer};
+use crate::accel::Ray;
+use crate::bsdf::Bsdf;
+use crate::color::Rgb;
+use crate::hashgrid::HashGrid;
+use crate::sampling::{Rng, Stream};
+use crate::scene::{Scene, SurfaceHit};
+use glam::Vec3;
+
+/// The light vertices of one iteration and the grid over them.
+#[derive(Clone, Copy)]
+pub struct Gathered<'i> {
+    pub vertices: &'i [LightVertex],
+    pub grid: &'i HashGrid,
+}
+
+/// What UPG's merges need of the scene and the options.
+pub struct UpgMerges<'s> {
+    scene: &'s Scene,
+    gather: Gather,
+    estimator: Estimator,
+    /// Path-length bounds in segments: the shortest path kept, the longest traced.
+    min_length: u32,
+    max_length: u32,
+    /// Path length from which Russian roulette may end paths.
+    roulette: u32,
+}
+
+impl<'s> UpgMerges<'s> {
+    /// `gather` is [`Gather::UpgLight`] or [`Gather::UpgCamera`].
+    pub fn new(
+        scene: &'s Scene,
+        gather: Gather,
+        estimator: Estimator,
+        [min_length, max_length]: [u32; 2],
+        roulette: u32,
+    ) -> Self {
+        UpgMerges {
+            scene,
+            gather,
+            estimator,
+            min_length,
+            max_length,
+            roulette,
+        }
+    }
+
+    /// `upg`: gathers the light vertices within r of the eye vertex `hit` whose predecessor Q is
+    /// a non-delta surface vertex, and for each connects Q to the eye vertex explicitly (000
+    /// eq. 2.67), the tentative rays from Q estimating 1/p_acc (000 eq. 2.65). Not yet divided
+    /// by the light sub-path count.
+    pub fn from_light(
+        &self,
+        w: &VcmWeights,
+        (state, hit, bsdf): (&SubPath, &SurfaceHit, &Bsdf),
+        gathered: Gathered,
+        tentative: &mut Tentative<'s>,
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let vertices = gathered.vertices;
+        gathered.grid.query(hit.position, |i, _| {
+            let photon = &vertices[i];
+            if !photon.after_surface {
+                return;
+            }
+            let q = &vertices[i - 1];
+            if !self.keeps(q.path_length + 1 + state.path_length) {
+                return;
+            }
+            let Some(q_bsdf) = q.bsdf(self.scene) else {
+                return;
+            };
+            let Some(link) = self.link(
+                (&q_bsdf, q.position, q.ng),
+                (bsdf, hit.position, hit.ng),
+                stats,
+            ) else {
+                return;
+            };
+            let Ok(bound) = AngularBound::new(q.position, q.ng, &q_bsdf, hit.position, w.radius)
+            else {
+                return;
+            };
+            // The light sub-path's quantities as they would be at the eye vertex; Q's own
+            // neighbour towards the light decides whether merging at Q is a technique.
+            let merge_at_q = self
+                .gather
+                .merge_at(Neighbour::surface_if(q.after_surface), Neighbour::Surface);
+            let light = carry(w, &link, q.mis_at(w, link.from_eval.rev_pdf_w), merge_at_q);
+            let weight = w.merge(
+                &light,
+                &state.mis_at(w, link.to_eval.rev_pdf_w),
+                (link.to_eval.pdf_w, link.to_eval.rev_pdf_w),
+                w.eta(light.d_vcm),
+                NO_DENSITY,
+            );
+            let roulette = self.roulette_probability(&q_bsdf, q.path_length);
+            tentative.push(bound, q.throughput * link.value * (weight / roulette));
+        });
+        self.estimate(tentative, stats)
+    }
+
+    /// `upg-camera`: gathers the light vertices within r of `position`, the vertex the eye
+    /// sub-path just reached, and connects each to the previous eye vertex `prev` explicitly,
+    /// the tentative rays from `prev` estimating 1/p_acc (000 sec. 2.4.3, UPG*). Not yet divided
+    /// by the light sub-path count.
+    pub fn from_camera(
+        &self,
+        w: &VcmWeights,
+        prev: &EyeVertex<'s>,
+        position: Vec3,
+        gathered: Gathered,
+        tentative: &mut Tentative<'s>,
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let vertices = gathered.vertices;
+        gathered.grid.query(position, |i, _| {
+            let photon = &vertices[i];
+            if !self.keeps(photon.path_length + 1 + prev.path_length) {
+                return;
+            }
+            let Some(p_bsdf) = photon.bsdf(self.scene) else {
+                return;
+            };
+            let Some(link) = self.link(
+                (&prev.bsdf, prev.hit.position, prev.hit.ng),
+                (&p_bsdf, photon.position, photon.ng),
+                stats,
+            ) else {
+                return;
+            };
+            let Ok(bound) = AngularBound::new(
+                prev.hit.position,
+                prev.hit.ng,
+                &prev.bsdf,
+                photon.position,
+                w.radius,
+            ) else {
+                return;
+            };
+            // The eye sub-path's quantities as they would be at the light vertex.
+            let merge_at_prev = self
+                .gather
+                .merge_at(Neighbour::Surface, Neighbour::surface_if(prev.prev_surface));
+            let eye = carry(w, &link, prev.mis, merge_at_prev);
+            // At the merge vertex the eye side samples towards the light vertex's predecessor:
+            // the photon's BSDF pdfs, seen the other way round.
+            let weight = w.merge(
+                &photon.mis_at(w, link.to_eval.rev_pdf_w),
+                &eye,
+                (link.to_eval.rev_pdf_w, link.to_eval.pdf_w),
+                w.eta(eye.d_vcm),
+                NO_DENSITY,
+            );
+            let roulette = self.roulette_probability(&prev.bsdf, prev.path_length);
+            tentative.push(
+                bound,
+                prev.throughput * photon.throughput * link.value * (weight / roulette),
+            );
+        });
+        self.estimate(tentative, stats)
+    }
+
+    /// The probability that Russian roulette let a sub-path go on from a vertex.
+    /// Whether a merged path of `segments` lies within the path-length bounds.
+    fn keeps(&self, segments: u32) -> bool {
+        (self.min_length..=self.max_length).contains(&segments)
+    }
+
+    fn roulette_probability(&self, bsdf: &Bsdf, path_length: u32) -> f32 {
+        if path_length >= self.roulette {
+            bsdf.continuation_probability()
+        } else {
+            1.0
+        }
+    }
+
+    /// The explicit connection of a UPG merge between two vertices (BSDF, position, geometric
+    /// normal): both BSDFs, the geometry term and the visibility (000 eq. 2.67).
+    fn link(
+        &self,
+        (from, from_position, from_ng): (&Bsdf, Vec3, Vec3),
+        (to, to_position, to_ng): (&Bsdf, Vec3, Vec3),
+        stats: &mut IterationStats,
+    ) -> Option<Connection> {
+        Connection::new(from, from_position, to, to_position).filter(|_| {
+            stats.rays += 1;
+            !self.scene.occluded(&Ray::spawn_between(
+                from_position,
+                from_ng,
+                to_position,
+                to_ng,
+            ))
+        })
+    }
+
+    /// Estimates 1/p_acc for the merges of one gather, together so that packets can take lanes
+    /// from all of them, and returns the sum of their contributions.
+    fn estimate(&self, tentative: &mut Tentative, stats: &mut IterationStats) -> Rgb {
+        // `upg` gathers light vertices, which lie on non-delta surfaces only; `upg-camera`
+        // gathers at wherever the eye sub-path lands.
+        match self.gather {
+            Gather::UpgLight => {
+                tentative.estimate(&self.estimator, &StoredVerticesOnly(self.scene), stats)
+            }
+            _ => tentative.estimate(&self.estimator, self.scene, stats),
+        }
+    }
+}
+
+/// The MIS quantities of the sub-path that ends at the first vertex of `c` (`at_from`),
+/// carried across it to the second (001 eqs. (34)-(36)).
+fn carry(w: &VcmWeights, c: &Connection, at_from: VcmVertex, merge_at_from: VmHere) -> VcmVertex {
+    let mut v = at_from;
+    w.scatter(
+        &mut v,
+        c.cos_from,
+        c.from_eval.pdf_w,
+        c.from_eval.rev_pdf_w,
+        false,
+        (merge_at_from == VmHere::Valid, 1.0),
+    );
+    w.arrive(&mut v, c.distance, c.cos_to, true);
+    v
+}
+
+/// The UPG merges of one eye sub-path awaiting their 1/p_acc: each merge's bound, its own
+/// random stream (so an estimate does not depend on how many numbers the packets before it
+/// drew) and its contribution without the 1/p_acc factor. Reused from gather to gather.
+pub struct Tentative<'s> {
+    seed: u64,
+    iteration: u64,
+    base: u64,
+    merges: u64,
+    bounds: Vec<AngularBound<'s>>,
+    rngs: Vec<Rng>,
+    values: Vec<Rgb>,
+}
+
+impl<'s> Tentative<'s> {
+    pub fn new(seed: u64, iteration: u64, pixel: usize) -> Self {
+        Tentative {
+            seed,
+            iteration,
+            base: (pixel as u64) << 24,
+            merges: 0,
+            bounds: Vec::new(),
+            rngs: Vec::new(),
+            values: Vec::new(),
+        }
+    }
+
+    fn push(&mut self, bound: AngularBound<'s>, value: Rgb) {
+        self.merges += 1;
+        self.rngs.push(Rng::for_sample(
+            self.seed,
+            self.iteration,
+            self.base + self.merges,
+            Stream::Tentative,
+        ));
+        self.bounds.push(bound);
+        self.values.push(value);
+    }
+
+    /// Estimates every pending merge, empties the list and returns the merges' sum. A capped
+    /// estimate drops its merge and is counted as capped; an unreachable target drops its merge
+    /// too.
+    fn estimate<T: TentativeTracer + ?Sized>(
+        &mut self,
+        estimator: &Estimator,
+        tracer: &T,
+        stats: &mut IterationStats,
+    ) -> Rgb {
+        let values = &mut self.values;
+        estimator.estimate_all(tracer, &self.bounds, &mut self.rngs, |i, estimate| {
+            stats.upg.merges += 1;
+            stats.upg.trials += estimate.trials as u64;
+            stats.upg.tentative_rays += estimate.rays as u64;
+            stats.rays += estimate.rays as u64;
+            values[i] = match estimate.outcome {
+                Outcome::Estimate(inv_p_acc) => values[i] * inv_p_acc,
+                Outcome::Capped => {
+                    stats.upg.capped += 1;
+                    Rgb::BLACK
+                }
+                Outcome::Unreachable => Rgb::BLACK,
+            };
+        });
+        // Summed in gathering order: packets finish merges in another order than single rays,
+        // and the image must not depend on it.
+        let sum = values.iter().fold(Rgb::BLACK, |sum, &v| sum + v);
+        self.bounds.clear();
+        self.rngs.clear();
+        self.values.clear();
+        sum
+    }
+}

@@ -1,0 +1,192 @@
+//! The memory a render will need, estimated before it starts and held against a limit (the
+//! machine's available memory unless told otherwise), so that a resolution too large for the
+//! machine is refused with a message rather than aborting in an allocation.
+
+use crate::integrator::subpath::LightVertex;
+use crate::options::{OptionName, Technique};
+use std::fmt;
+use thiserror::Error;
+
+/// Bytes per pixel of everything image-sized: the f64 sums (24), one iteration's frame (12),
+/// the mean written out (12), the EXR's channels while encoding (3 x (4 + 8)), the preview (16).
+const FILM_BYTES_PER_PIXEL: u64 = 24 + 12 + 12 + 36 + 16;
+
+/// Light vertices a light sub-path stores on average, beyond the roulette's start: paths go on
+/// with probability about the albedo, 1 / (1 - 0.8) = 5 more for albedo 0.8.
+const VERTICES_AFTER_ROULETTE: u64 = 5;
+
+/// Per worker thread: its stack and its tile buffers.
+const BYTES_PER_THREAD: u64 = 4 << 20;
+
+/// The parts of a render's memory, in bytes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MemoryNeed {
+    pub parts: Vec<(&'static str, u64)>,
+}
+
+impl MemoryNeed {
+    pub fn total(&self) -> u64 {
+        self.parts
+            .iter()
+            .fold(0u64, |total, (_, bytes)| total.saturating_add(*bytes))
+    }
+}
+
+impl fmt::Display for MemoryNeed {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let parts: Vec<String> = self
+            .parts
+            .iter()
+            .filter(|(_, bytes)| *bytes > 0)
+            .map(|(what, bytes)| format!("{what} {}", Bytes(*bytes)))
+            .collect();
+        write!(f, "{} ({})", Bytes(self.total()), parts.join(", "))
+    }
+}
+
+/// A byte count in binary units.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bytes(pub u64);
+
+impl fmt::Display for Bytes {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let units = ["B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
+        let mut value = self.0 as f64;
+        let mut unit = 0;
+        while value >= 1024.0 && unit + 1 < units.len() {
+            value /= 1024.0;
+            unit += 1;
+        }
+        if unit == 0 {
+            write!(f, "{} B", self.0)
+        } else {
+            write!(f, "{value:.1} {}", units[unit])
+        }
+    }
+}
+
+/// The estimate for a render of `pixels` pixels with `technique`, paths of at most
+/// `max_path_length` segments (`u32::MAX` unbounded), roulette from `roulette`, on `threads`
+/// worker threads.
+pub fn estimate(
+    technique: Technique,
+    pixels: u64,
+    max_path_length: u32,
+    roulette: u32,
+    threads: usize,
+) -> MemoryNeed {
+    let film = pixels.saturating_mul(FILM_BYTES_PER_PIXEL);
+    // The merging techniques keep one light sub-path per pixel, its vertices stored twice
+    // while the threads' chunks are concatenated, plus the hash grid's 20 bytes per vertex.
+    let light_vertices = if technique.merges() {
+        let per_path = (max_path_length as u64).min(roulette as u64 + VERTICES_AFTER_ROULETTE);
+        let per_vertex = 2 * std::mem::size_of::<LightVertex>() as u64 + 20;
+        pixels.saturating_mul(per_path).saturating_mul(per_vertex)
+    } else {
+        0
+    };
+    MemoryNeed {
+        parts: vec![
+            ("film", film),
+            ("light vertices", light_vertices),
+            ("threads", (threads as u64).saturating_mul(BYTES_PER_THREAD)),
+        ],
+    }
+}
+
+/// The memory the system could give this process now (Linux's `MemAvailable`), if known.
+pub fn available() -> Option<u64> {
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib.saturating_mul(1024))
+}
+
+/// A render that would need more memory than it may use.
+#[derive(Debug, Error, PartialEq)]
+#[error("the render needs about {need}, more than the {limit} {source_of_limit}; lower the resolution{hint} or raise {}", OptionName("memory_limit"))]
+pub struct MemoryError {
+    pub need: MemoryNeed,
+    pub limit: Bytes,
+    pub source_of_limit: &'static str,
+    pub hint: &'static str,
+}
+
+/// Holds `need` against `limit`, or against the available memory when `limit` is `None`
+/// (and nothing when that is unknown).
+pub fn check(need: &MemoryNeed, limit: Option<u64>) -> Result<(), MemoryError> {
+    let (limit, source_of_limit) = match limit {
+        Some(l) => (l, "given"),
+        None => match available() {
+            Some(a) => (a, "available on this machine"),
+            None => return Ok(()),
+        },
+    };
+    if need.total() <= limit {
+        return Ok(());
+    }
+    let merges = need
+        .parts
+        .iter()
+        .any(|(what, bytes)| *what == "light vertices" && *bytes > 0);
+    Err(MemoryError {
+        need: need.clone(),
+        limit: Bytes(limit),
+        source_of_limit,
+        hint: if merges { " or the path length" } else { "" },
+    })
+}
+
+/// Parses a size such as `512M`, `8G`, `1.5T` or a plain byte count.
+pub fn parse_size(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let value: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a size like 512M or 8G"))?;
+    let scale = match unit
+        .to_ascii_uppercase()
+        .trim_end_matches("IB")
+        .trim_end_matches('B')
+    {
+        "" => 1.0,
+        "K" => 1024.0,
+        "M" => 1024.0 * 1024.0,
+        "G" => 1024.0 * 1024.0 * 1024.0,
+        "T" => 1024.0 * 1024.0 * 1024.0 * 1024.0,
+        _ => return Err(format!("'{s}': unknown unit '{unit}' (K, M, G, T)")),
+    };
+    let bytes = value * scale;
+    if !(bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64) {
+        return Err(format!("'{s}' is not a size of at least one byte"));
+    }
+    Ok(bytes as u64)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn huge_films_are_refused_without_overflow() {
+        let need = estimate(Technique::Vcm, u64::from(u32::MAX).pow(2), 10, 3, 8);
+        assert_eq!(need.total(), u64::MAX);
+        let err = check(&need, Some(1 << 30)).unwrap_err().to_string();
+        assert!(err.contains("path length"), "{err}");
+        let small = estimate(Technique::Pt, 64 * 64, 10, 3, 2);
+        assert_eq!(small.parts[1].1, 0);
+        assert_eq!(check(&small, Some(1 << 30)), Ok(()));
+    }
+
+    #[test]
+    fn sizes_parse() {
+        assert_eq!(parse_size("512M"), Ok(512 << 20));
+        assert_eq!(parse_size("8GiB"), Ok(8 << 30));
+        assert_eq!(parse_size("1000"), Ok(1000));
+        for bad in ["", "0", "-1G", "nanG", "5Q", "infT"] {
+            assert!(parse_size(bad).is_err(), "{bad}");
+        }
+    }
+}

@@ -1,0 +1,339 @@
+//! One cell of a plan: one ordinary render (or its continuation, or the merge of a reference's
+//! parts), its state on disk, and the command line that brings it up to date.
+
+use super::BatchError;
+use crate::film::{Metadata, TraceWindow};
+use crate::options::{RenderOptions, RULES};
+use crate::tools::metadata;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// How much a cell renders.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Budget {
+    Time(Duration),
+    Iterations(u64),
+}
+
+impl Budget {
+    /// One of `parts` equal shares (a reference split by seed).
+    pub fn split(self, parts: u64) -> Budget {
+        match self {
+            Budget::Time(t) => Budget::Time(t / parts.max(1) as u32),
+            Budget::Iterations(n) => Budget::Iterations(n.div_ceil(parts.max(1))),
+        }
+    }
+
+    /// What is left after a render of `iterations` and `seconds`; `None` when it is spent. A
+    /// time budget counts as spent within 1% (at least half a second): the render loop stops at
+    /// the first iteration past the limit, and a snapshot can land just short of it.
+    pub fn remaining(self, iterations: u64, seconds: f64) -> Option<Budget> {
+        match self {
+            Budget::Iterations(n) => (iterations < n).then(|| Budget::Iterations(n - iterations)),
+            Budget::Time(t) => {
+                let left = t.as_secs_f64() - seconds;
+                let slack = (0.01 * t.as_secs_f64()).max(0.5);
+                (left > slack).then(|| Budget::Time(Duration::from_secs_f64(left)))
+            }
+        }
+    }
+
+    /// The command-line flag: `-n N` or `--time Ts`.
+    fn flags(self) -> [String; 2] {
+        match self {
+            Budget::Iterations(n) => ["-n".into(), n.to_string()],
+            Budget::Time(t) => ["--time".into(), seconds(t)],
+        }
+    }
+
+    /// `8 it` or `20m`, for status lines.
+    pub fn describe(self) -> String {
+        match self {
+            Budget::Iterations(n) => format!("{n} it"),
+            Budget::Time(t) => seconds(t),
+        }
+    }
+}
+
+fn seconds(t: Duration) -> String {
+    format!("{}s", t.as_secs_f64())
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum CellKind {
+    /// A reference render (or one seed part of it), measured against nothing.
+    Reference,
+    /// The merge of a reference's parts (the plan's cell indices).
+    Merge { parts: Vec<usize> },
+    /// A technique at one set of options, measured against its reference.
+    Render,
+}
+
+/// What a render cell is measured against.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ReferenceSource {
+    File(PathBuf),
+    /// The cell of the plan at this index.
+    Cell(usize),
+}
+
+#[derive(Clone, Debug)]
+pub struct Cell {
+    /// The file stem, from the parameters: `corners.front.vcm.r0_01`.
+    pub name: String,
+    pub output: PathBuf,
+    pub kind: CellKind,
+    pub scene: String,
+    pub camera: String,
+    pub scene_file: PathBuf,
+    pub options: RenderOptions,
+    pub budget: Budget,
+    pub reference: Option<ReferenceSource>,
+    pub traces: Vec<TraceWindow>,
+    /// The technique with its options but the radius and seed (see [`super::variant_name`]).
+    pub variant: String,
+}
+
+/// A cell's file, as found.
+#[derive(Clone, Debug, PartialEq)]
+pub enum State {
+    Missing,
+    /// Rendered in full.
+    Done {
+        metadata: Box<Metadata>,
+    },
+    /// Rendered in part (interrupted, or a snapshot); the rest of the budget is left.
+    Partial {
+        metadata: Box<Metadata>,
+        left: Budget,
+    },
+    /// Made with other settings than the plan's (or unreadable): rendered again from scratch.
+    Stale {
+        reason: String,
+    },
+}
+
+impl State {
+    pub fn word(&self) -> &'static str {
+        match self {
+            State::Missing => "missing",
+            State::Done { .. } => "done",
+            State::Partial { .. } => "partial",
+            State::Stale { .. } => "stale",
+        }
+    }
+
+    pub fn metadata(&self) -> Option<&Metadata> {
+        match self {
+            State::Done { metadata } | State::Partial { metadata, .. } => Some(metadata),
+            _ => None,
+        }
+    }
+}
+
+/// What bringing a cell up to date takes.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Action {
+    Render,
+    Continue(Budget),
+    Merge(Vec<PathBuf>),
+}
+
+/// The value of option `name` as a command-line argument; `None` for a flag without one.
+pub fn option_value(o: &RenderOptions, name: &str) -> Option<String> {
+    match name {
+        "resolution" => o.resolution.map(|[w, h]| format!("{w}x{h}")),
+        "beta" => Some(o.beta.to_string()),
+        "radius" => o.radius.map(|r| r.to_string()),
+        "alpha" => o.alpha.map(|a| a.to_string()),
+        "max_path_length" => o.max_path_length.map(|n| n.to_string()),
+        "roulette" => Some(o.roulette.to_string()),
+        "strategy" => o.strategy.map(|[s, t]| format!("{s},{t}")),
+        "upg_packet" => Some(o.upg_packet.to_string()),
+        "upg_max_trials" => Some(o.upg_max_trials.to_string()),
+        "light_paths" => o.light_paths.map(|n| n.to_string()),
+        "min_path_length" => Some(o.min_path_length.to_string()),
+        _ => None,
+    }
+}
+
+/// Same file, by canonical path where both exist, else by name.
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => a == b,
+    }
+}
+
+fn modified(path: &Path) -> Option<std::time::SystemTime> {
+    std::fs::metadata(path).and_then(|m| m.modified()).ok()
+}
+
+impl Cell {
+    /// The reference file this cell is measured against, if any.
+    pub fn reference_file<'p>(&'p self, cells: &'p [Cell]) -> Option<&'p Path> {
+        match self.reference.as_ref()? {
+            ReferenceSource::File(f) => Some(f),
+            ReferenceSource::Cell(i) => Some(&cells[*i].output),
+        }
+    }
+
+    /// The cell's file compared with what the plan says it should be.
+    pub fn state(&self, cells: &[Cell]) -> State {
+        if !self.output.exists() {
+            return State::Missing;
+        }
+        let m = match metadata(&self.output) {
+            Ok(m) => m,
+            Err(e) => {
+                return State::Stale {
+                    reason: e.to_string(),
+                }
+            }
+        };
+        let stale = |reason: String| State::Stale { reason };
+        if m.options != self.options {
+            return stale("rendered with other options".into());
+        }
+        if !same_file(Path::new(&m.scene), &self.scene_file) {
+            return stale(format!("rendered from {}", m.scene));
+        }
+        let reference = self.reference_file(cells);
+        match (reference, &m.reference) {
+            (None, None) => {}
+            (Some(want), Some(have)) if same_file(want, Path::new(have)) => {
+                // A reference rendered again after this cell measured against it.
+                if let (Some(r), Some(c)) = (modified(want), modified(&self.output)) {
+                    if r > c {
+                        return stale("its reference is newer".into());
+                    }
+                }
+            }
+            _ => return stale("measured against another reference".into()),
+        }
+        if m.traces != self.traces {
+            return stale("other trace windows".into());
+        }
+        if let CellKind::Merge { parts } = &self.kind {
+            let sum: u64 = parts
+                .iter()
+                .filter_map(|&p| cells[p].state(cells).metadata().map(|m| m.iterations))
+                .sum();
+            return if sum == m.iterations {
+                State::Done {
+                    metadata: Box::new(m),
+                }
+            } else {
+                stale(format!(
+                    "merged {} iterations, the parts hold {sum}",
+                    m.iterations
+                ))
+            };
+        }
+        match self.budget.remaining(m.iterations, m.render_seconds) {
+            None => State::Done {
+                metadata: Box::new(m),
+            },
+            Some(left) => State::Partial {
+                metadata: Box::new(m),
+                left,
+            },
+        }
+    }
+
+    /// What the cell needs now, or `None` when it is done or waits for other cells (its
+    /// reference, or a merge's parts). `done(i)` says whether cell `i` is done.
+    pub fn action(
+        &self,
+        state: &State,
+        cells: &[Cell],
+        done: &dyn Fn(usize) -> bool,
+    ) -> Option<Action> {
+        if let CellKind::Merge { parts } = &self.kind {
+            if matches!(state, State::Done { .. }) || !parts.iter().all(|&p| done(p)) {
+                return None;
+            }
+            return Some(Action::Merge(
+                parts.iter().map(|&p| cells[p].output.clone()).collect(),
+            ));
+        }
+        match &self.reference {
+            Some(ReferenceSource::Cell(i)) if !done(*i) => return None,
+            Some(ReferenceSource::File(f)) if !f.exists() => return None,
+            _ => {}
+        }
+        match state {
+            State::Done { .. } => None,
+            State::Partial { left, .. } => Some(Action::Continue(*left)),
+            State::Missing | State::Stale { .. } => Some(Action::Render),
+        }
+    }
+
+    /// The `vmerge` arguments of `action` (after the program's name).
+    pub fn arguments(
+        &self,
+        action: &Action,
+        cells: &[Cell],
+        threads: Option<usize>,
+        snapshot: Option<Duration>,
+    ) -> Vec<String> {
+        let path = |p: &Path| p.to_string_lossy().into_owned();
+        let mut args = Vec::new();
+        match action {
+            Action::Merge(parts) => {
+                args.push("merge".into());
+                args.push(path(&self.output));
+                args.extend(parts.iter().map(|p| path(p)));
+                return args;
+            }
+            Action::Render => {
+                let o = &self.options;
+                args.extend(["render".into(), path(&self.scene_file)]);
+                args.extend(["--technique".into(), o.technique.name().into()]);
+                args.extend(["--seed".into(), o.seed.to_string()]);
+                if let Some(camera) = &o.camera {
+                    args.extend(["--camera".into(), camera.clone()]);
+                }
+                for rule in RULES {
+                    if !(rule.is_set)(o) {
+                        continue;
+                    }
+                    args.push(format!("--{}", rule.name.replace('_', "-")));
+                    args.extend(option_value(o, rule.name));
+                }
+                args.extend(self.budget.flags());
+                args.extend(["--output".into(), path(&self.output)]);
+                if let Some(reference) = self.reference_file(cells) {
+                    args.extend(["--reference".into(), path(reference)]);
+                }
+                for t in &self.traces {
+                    args.extend(["--trace".into(), t.to_string()]);
+                }
+            }
+            Action::Continue(left) => {
+                args.extend(["continue".into(), path(&self.output)]);
+                args.extend(left.flags());
+            }
+        }
+        if let Some(every) = snapshot {
+            args.extend(["--snapshot".into(), seconds(every)]);
+        }
+        if let Some(n) = threads {
+            args.extend(["--threads".into(), n.to_string()]);
+        }
+        args
+    }
+
+    /// The final error sample of a rendered cell: `[mae, rmse]` and the trace windows'.
+    pub fn final_errors(state: &State) -> Option<&crate::film::ErrorSample> {
+        state.metadata()?.errors.last()
+    }
+}
+
+/// Checks that the folder for the cells exists, creating it.
+pub fn make_output(dir: &Path) -> Result<(), BatchError> {
+    std::fs::create_dir_all(dir).map_err(|e| BatchError::Write {
+        file: dir.into(),
+        message: e.to_string(),
+    })
+}

@@ -1,0 +1,61 @@
+//! Batch generation of results (000 ch. 4): a plan of renders (scenes x cameras x techniques x
+//! radii x betas x seeds, each with a budget, measured against a reference per scene and
+//! camera), run resumably in-process or handed to GNU parallel or Slurm as ordinary `vmerge`
+//! command lines, and a report of whatever cells exist.
+//!
+//! - `plan.rs`: the plan file and its expansion into cells;
+//! - `cell.rs`: one cell, its state on disk (done, partial, missing, stale) and its command;
+//! - `run.rs`: status, dry runs, the in-process runner, `--jobs` lines and Slurm scripts;
+//! - `report.rs`: the static HTML report with thumbnails, tables and charts.
+//!
+//! A cell is idempotent: its file holds its options, reference and trace windows, so a cell
+//! already rendered in full is skipped, one rendered in part continues, and one made with other
+//! settings than the plan now says is rendered again. References come first: a cell whose
+//! reference is not there yet waits, and `--jobs` lists only what can run now.
+
+mod cell;
+mod plan;
+mod report;
+mod run;
+
+pub use cell::{Action, Budget, Cell, CellKind, ReferenceSource, State};
+pub use plan::{parse_duration, variant_name, Plan};
+pub use report::report;
+pub use run::{dry_run, jobs, run, slurm, status, Event, ProgressBar};
+
+use crate::film::FilmError;
+use crate::render::RenderError;
+use std::path::PathBuf;
+use thiserror::Error;
+
+#[derive(Debug, Error)]
+pub enum BatchError {
+    /// The plan file is missing, unreadable or wrong; the message names the entry.
+    #[error("{file}: {message}")]
+    Plan { file: PathBuf, message: String },
+    #[error("{file}: cannot write: {message}")]
+    Write { file: PathBuf, message: String },
+    #[error("cell {cell}: {source}")]
+    Render {
+        cell: String,
+        #[source]
+        source: RenderError,
+    },
+    #[error(transparent)]
+    Film(#[from] FilmError),
+}
+
+impl BatchError {
+    /// Whether the error is the user's input (the plan, a scene, a reference) rather than the
+    /// system.
+    pub fn is_input(&self) -> bool {
+        match self {
+            BatchError::Plan { .. } => true,
+            BatchError::Write { .. } => false,
+            BatchError::Render { source, .. } => {
+                !matches!(source, RenderError::Film(FilmError::Write { .. }))
+            }
+            BatchError::Film(f) => !matches!(f, FilmError::Write { .. }),
+        }
+    }
+}

@@ -1,0 +1,772 @@
+//! Reading a plan file (DESIGN.md, "Output") and expanding it into its cells.
+//!
+//! Keys, at the top level (defaults for everything below), in `[[scene]]` and in `[[group]]`:
+//! `budget = "20m"` or `iterations = N` (a cell's budget), `seeds = [..]`, `resolution`,
+//! `traces = ["XxYxW", ..]`, and any option of [`RULES`] by its field name (`min_path_length =
+//! 3`, `no_vc = true`, ...); a lower level overrides a higher one. Only at the top: `output`,
+//! `threads` (per cell), `snapshot`, `metric`. A scene: `file`, `name`, `cameras`,
+//! `reference`. A group: `techniques`, `radius` (a number, a list or a sweep `{ from, to,
+//! steps, spacing = "log" | "linear" }`), `beta` (a number or a list), `scenes` (names; all when
+//! absent). A reference: a file (`{camera}` stands for the camera's name) or a table
+//! `{ technique = "bpt", budget | iterations, parts = K, seed, options... }`.
+
+use super::cell::{Budget, Cell, CellKind, ReferenceSource};
+use super::BatchError;
+use crate::film::TraceWindow;
+use crate::options::{RenderOptions, Technique, RULES};
+use crate::tools::Metric;
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+/// A plan, expanded: its cells in the order they are run (references first).
+#[derive(Clone, Debug)]
+pub struct Plan {
+    /// The plan file as given.
+    pub file: PathBuf,
+    /// Where the cells go (`output`, relative to the plan file).
+    pub output: PathBuf,
+    /// Threads per cell (`--threads`; the cores of a Slurm array task); `None` = all.
+    pub threads: Option<usize>,
+    /// Snapshot interval of every cell, so that a killed cell keeps most of its work.
+    pub snapshot: Option<Duration>,
+    /// The error that picks a technique's best cell in the report.
+    pub metric: Metric,
+    pub cells: Vec<Cell>,
+    /// The scenes and cameras, in plan order, as `(scene name, camera name)`.
+    pub views: Vec<(String, String)>,
+}
+
+/// The first seed of a reference unless the plan gives one: far from the cells' seeds, since a
+/// cell and its reference with one seed would share their eye sub-paths' random numbers and
+/// the measured error would come out too low.
+pub const REFERENCE_SEED: u64 = 1 << 32;
+
+/// Keys that are not options, by the level that takes them.
+const TOP_KEYS: &[&str] = &[
+    "output",
+    "threads",
+    "snapshot",
+    "metric",
+    "scene",
+    "group",
+    "budget",
+    "iterations",
+    "seeds",
+    "resolution",
+    "traces",
+];
+const SCENE_KEYS: &[&str] = &[
+    "file",
+    "name",
+    "cameras",
+    "reference",
+    "budget",
+    "iterations",
+    "seeds",
+    "resolution",
+    "traces",
+];
+const GROUP_KEYS: &[&str] = &[
+    "techniques",
+    "radius",
+    "beta",
+    "scenes",
+    "budget",
+    "iterations",
+    "seeds",
+    "resolution",
+    "traces",
+];
+const REFERENCE_KEYS: &[&str] = &["technique", "budget", "iterations", "parts", "seed"];
+
+/// Options set by a level of the plan; `resolution`, `beta` and `radius` have their own keys.
+fn is_option(key: &str) -> bool {
+    RULES
+        .iter()
+        .any(|r| r.name == key && !matches!(key, "resolution" | "beta" | "radius"))
+}
+
+/// Reads the parts of a plan file that name one entry, for messages.
+struct Reader<'a> {
+    file: &'a Path,
+}
+
+impl Reader<'_> {
+    fn error(&self, entry: &str, message: impl std::fmt::Display) -> BatchError {
+        BatchError::Plan {
+            file: self.file.to_path_buf(),
+            message: format!("{entry}: {message}"),
+        }
+    }
+
+    fn check_keys(
+        &self,
+        entry: &str,
+        table: &toml::Table,
+        allowed: &[&str],
+    ) -> Result<(), BatchError> {
+        for key in table.keys() {
+            if !allowed.contains(&key.as_str()) && !is_option(key) {
+                return Err(self.error(entry, format!("unknown key '{key}'")));
+            }
+        }
+        Ok(())
+    }
+
+    fn string(&self, entry: &str, v: &toml::Value) -> Result<String, BatchError> {
+        v.as_str()
+            .map(str::to_string)
+            .ok_or_else(|| self.error(entry, format!("expected a string, found {v}")))
+    }
+
+    fn number(&self, entry: &str, v: &toml::Value) -> Result<f64, BatchError> {
+        match v {
+            toml::Value::Float(f) => Ok(*f),
+            toml::Value::Integer(i) => Ok(*i as f64),
+            _ => Err(self.error(entry, format!("expected a number, found {v}"))),
+        }
+    }
+
+    fn count(&self, entry: &str, v: &toml::Value) -> Result<u64, BatchError> {
+        v.as_integer()
+            .and_then(|i| u64::try_from(i).ok())
+            .ok_or_else(|| self.error(entry, format!("expected a whole number >= 0, found {v}")))
+    }
+
+    /// A number or a list of numbers.
+    fn numbers(&self, entry: &str, v: &toml::Value) -> Result<Vec<f64>, BatchError> {
+        match v {
+            toml::Value::Array(items) if !items.is_empty() => {
+                items.iter().map(|x| self.number(entry, x)).collect()
+            }
+            toml::Value::Array(_) => Err(self.error(entry, "an empty list")),
+            x => Ok(vec![self.number(entry, x)?]),
+        }
+    }
+
+    fn strings(&self, entry: &str, v: &toml::Value) -> Result<Vec<String>, BatchError> {
+        match v {
+            toml::Value::Array(items) if !items.is_empty() => {
+                items.iter().map(|x| self.string(entry, x)).collect()
+            }
+            toml::Value::Array(_) => Err(self.error(entry, "an empty list")),
+            x => Ok(vec![self.string(entry, x)?]),
+        }
+    }
+
+    fn budget(&self, entry: &str, table: &toml::Table) -> Result<Option<Budget>, BatchError> {
+        match (table.get("budget"), table.get("iterations")) {
+            (Some(_), Some(_)) => Err(self.error(entry, "give budget or iterations, not both")),
+            (Some(b), None) => {
+                let text = self.string(&format!("{entry}: budget"), b)?;
+                parse_duration(&text)
+                    .map(|d| Some(Budget::Time(d)))
+                    .map_err(|e| self.error(&format!("{entry}: budget"), e))
+            }
+            (None, Some(n)) => match self.count(&format!("{entry}: iterations"), n)? {
+                0 => Err(self.error(entry, "iterations = 0 renders nothing")),
+                n => Ok(Some(Budget::Iterations(n))),
+            },
+            (None, None) => Ok(None),
+        }
+    }
+
+    fn resolution(&self, entry: &str, v: &toml::Value) -> Result<[u32; 2], BatchError> {
+        let sides = self.numbers(entry, v)?;
+        match sides[..] {
+            [w, h] if w >= 1.0 && h >= 1.0 && w.fract() == 0.0 && h.fract() == 0.0 => {
+                Ok([w as u32, h as u32])
+            }
+            _ => Err(self.error(entry, "expected [width, height], whole numbers >= 1")),
+        }
+    }
+
+    fn traces(&self, entry: &str, v: &toml::Value) -> Result<Vec<TraceWindow>, BatchError> {
+        match v {
+            toml::Value::Array(items) => items
+                .iter()
+                .map(|t| {
+                    self.string(entry, t)?
+                        .parse()
+                        .map_err(|e: String| self.error(entry, e))
+                })
+                .collect(),
+            _ => Err(self.error(entry, "expected a list of \"XxYxW\" windows")),
+        }
+    }
+
+    fn seeds(&self, entry: &str, v: &toml::Value) -> Result<Vec<u64>, BatchError> {
+        match v {
+            toml::Value::Array(items) if !items.is_empty() => {
+                items.iter().map(|s| self.count(entry, s)).collect()
+            }
+            _ => Err(self.error(entry, "expected a non-empty list of seeds")),
+        }
+    }
+
+    /// The radii of a group: a number, a list, or a sweep.
+    fn radii(&self, entry: &str, v: &toml::Value) -> Result<Vec<f32>, BatchError> {
+        let values = match v {
+            toml::Value::Table(sweep) => self.sweep(entry, sweep)?,
+            other => self.numbers(entry, other)?,
+        };
+        values
+            .into_iter()
+            .map(|r| {
+                if r.is_finite() && r > 0.0 {
+                    Ok(r as f32)
+                } else {
+                    Err(self.error(entry, format!("radius {r}: expected a finite radius > 0")))
+                }
+            })
+            .collect()
+    }
+
+    /// `{ from, to, steps, spacing }`: `steps` radii from `from` to `to`, evenly spaced on a
+    /// log or a linear scale, rounded to three significant digits so that names and tables
+    /// read well.
+    fn sweep(&self, entry: &str, sweep: &toml::Table) -> Result<Vec<f64>, BatchError> {
+        for key in sweep.keys() {
+            if !["from", "to", "steps", "spacing"].contains(&key.as_str()) {
+                return Err(self.error(entry, format!("unknown key '{key}' in the sweep")));
+            }
+        }
+        let get = |key: &str| {
+            sweep
+                .get(key)
+                .ok_or_else(|| self.error(entry, format!("the sweep needs '{key}'")))
+        };
+        let from = self.number(entry, get("from")?)?;
+        let to = self.number(entry, get("to")?)?;
+        let steps = self.count(entry, get("steps")?)?;
+        let spacing = match sweep.get("spacing") {
+            Some(s) => self.string(entry, s)?,
+            None => "log".into(),
+        };
+        if !(from > 0.0 && to > from && steps >= 2) {
+            return Err(self.error(entry, "a sweep needs 0 < from < to and steps >= 2"));
+        }
+        let log = match spacing.as_str() {
+            "log" => true,
+            "linear" => false,
+            other => {
+                return Err(self.error(
+                    entry,
+                    format!("spacing '{other}': expected \"log\" or \"linear\""),
+                ))
+            }
+        };
+        Ok((0..steps)
+            .map(|i| {
+                let t = i as f64 / (steps - 1) as f64;
+                let r = if log {
+                    from * (to / from).powf(t)
+                } else {
+                    from + (to - from) * t
+                };
+                round_significant(r, 3)
+            })
+            .collect())
+    }
+}
+
+fn round_significant(x: f64, digits: i32) -> f64 {
+    let scale = 10f64.powi(digits - 1 - x.abs().log10().floor() as i32);
+    (x * scale).round() / scale
+}
+
+/// A plan's duration: [`crate::options::parse_duration`], and more than zero.
+pub fn parse_duration(s: &str) -> Result<Duration, String> {
+    let d = crate::options::parse_duration(s)?;
+    if d.is_zero() {
+        return Err(format!("'{}' is not a positive duration", s.trim()));
+    }
+    Ok(d)
+}
+
+/// The settings a level passes down to the levels below it.
+#[derive(Clone)]
+struct Inherited {
+    budget: Option<Budget>,
+    seeds: Vec<u64>,
+    resolution: Option<[u32; 2]>,
+    traces: Vec<TraceWindow>,
+    /// Option keys and their values, in the order the levels set them.
+    options: toml::Table,
+}
+
+impl Inherited {
+    fn below(&self, r: &Reader, entry: &str, table: &toml::Table) -> Result<Self, BatchError> {
+        let mut next = self.clone();
+        if let Some(b) = r.budget(entry, table)? {
+            next.budget = Some(b);
+        }
+        if let Some(s) = table.get("seeds") {
+            next.seeds = r.seeds(&format!("{entry}: seeds"), s)?;
+        }
+        if let Some(v) = table.get("resolution") {
+            next.resolution = Some(r.resolution(&format!("{entry}: resolution"), v)?);
+        }
+        if let Some(v) = table.get("traces") {
+            next.traces = r.traces(&format!("{entry}: traces"), v)?;
+        }
+        for (key, value) in table {
+            if is_option(key) {
+                next.options.insert(key.clone(), value.clone());
+            }
+        }
+        Ok(next)
+    }
+
+    /// The render options of a cell: the defaults with the plan's options over them.
+    fn options(
+        &self,
+        r: &Reader,
+        entry: &str,
+        technique: Technique,
+        extra: &[(&str, toml::Value)],
+    ) -> Result<RenderOptions, BatchError> {
+        let defaults = RenderOptions {
+            technique,
+            resolution: self.resolution,
+            ..RenderOptions::DEFAULT
+        };
+        let mut table = match toml::Value::try_from(defaults) {
+            Ok(toml::Value::Table(t)) => t,
+            _ => return Err(r.error(entry, "the default options do not serialise")),
+        };
+        for (key, value) in self.options.iter() {
+            table.insert(key.clone(), value.clone());
+        }
+        for (key, value) in extra {
+            table.insert((*key).to_string(), value.clone());
+        }
+        let options: RenderOptions = table
+            .try_into()
+            .map_err(|e: toml::de::Error| r.error(entry, e.message()))?;
+        options
+            .validate()
+            .map_err(|e| r.error(&format!("{entry} ({technique})"), e))?;
+        Ok(options)
+    }
+}
+
+/// The name a scene goes by in cell names: its `name`, or its folder's name for a
+/// `scene.toml`, or its file's stem.
+fn scene_name(file: &Path) -> String {
+    let stem = file.file_stem().map(|s| s.to_string_lossy().into_owned());
+    match stem.as_deref() {
+        Some("scene") | None => file
+            .parent()
+            .and_then(|p| p.file_name())
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "scene".into()),
+        Some(s) => s.to_string(),
+    }
+}
+
+/// Characters a name part may keep; everything else becomes `-`, so names stay file names.
+fn clean(part: &str) -> String {
+    part.chars()
+        .map(|c| {
+            if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '-'
+            }
+        })
+        .collect()
+}
+
+impl Plan {
+    /// Reads and expands `file`. Every problem names the file and the entry.
+    pub fn load(file: &Path) -> Result<Plan, BatchError> {
+        let r = Reader { file };
+        let text = std::fs::read_to_string(file).map_err(|e| BatchError::Plan {
+            file: file.into(),
+            message: format!("cannot read: {e}"),
+        })?;
+        let top: toml::Table = text
+            .parse()
+            .map_err(|e: toml::de::Error| BatchError::Plan {
+                file: file.into(),
+                message: e.to_string(),
+            })?;
+        r.check_keys("the top level", &top, TOP_KEYS)?;
+        let dir = file.parent().unwrap_or(Path::new("")).to_path_buf();
+        let output = match top.get("output") {
+            Some(v) => dir.join(r.string("output", v)?),
+            None => return Err(r.error("the top level", "needs output = \"FOLDER\"")),
+        };
+        let threads = match top.get("threads") {
+            Some(v) => match r.count("threads", v)? {
+                0 => return Err(r.error("threads", "at least 1")),
+                n => Some(n as usize),
+            },
+            None => None,
+        };
+        let snapshot = match top.get("snapshot") {
+            Some(v) => Some(
+                parse_duration(&r.string("snapshot", v)?).map_err(|e| r.error("snapshot", e))?,
+            ),
+            None => Some(Duration::from_secs(60)),
+        };
+        let metric = match top.get("metric") {
+            Some(v) => {
+                let name = r.string("metric", v)?;
+                Metric::from_name(&name)
+                    .ok_or_else(|| r.error("metric", format!("'{name}': expected mae or rmse")))?
+            }
+            None => Metric::Mae,
+        };
+        let root = Inherited {
+            budget: None,
+            seeds: vec![RenderOptions::DEFAULT.seed],
+            resolution: None,
+            traces: Vec::new(),
+            options: toml::Table::new(),
+        }
+        .below(&r, "the top level", &top)?;
+        let tables = |key: &str| -> Result<Vec<toml::Table>, BatchError> {
+            match top.get(key) {
+                None => Ok(Vec::new()),
+                Some(toml::Value::Array(items)) => items
+                    .iter()
+                    .enumerate()
+                    .map(|(i, v)| {
+                        v.as_table()
+                            .cloned()
+                            .ok_or_else(|| r.error(&format!("[[{key}]] {}", i + 1), "not a table"))
+                    })
+                    .collect(),
+                Some(_) => Err(r.error(key, format!("expected [[{key}]] tables"))),
+            }
+        };
+        let scenes = tables("scene")?;
+        let groups = tables("group")?;
+        if scenes.is_empty() || groups.is_empty() {
+            return Err(r.error("the top level", "needs [[scene]] and [[group]] entries"));
+        }
+        let mut plan = Plan {
+            file: file.into(),
+            output: output.clone(),
+            threads,
+            snapshot,
+            metric,
+            cells: Vec::new(),
+            views: Vec::new(),
+        };
+        let mut renders = Vec::new();
+        let mut scene_names: Vec<String> = Vec::new();
+        for (i, scene) in scenes.iter().enumerate() {
+            let entry = format!("[[scene]] {}", i + 1);
+            r.check_keys(&entry, scene, SCENE_KEYS)?;
+            let scene_file = match scene.get("file") {
+                Some(v) => dir.join(r.string(&format!("{entry}: file"), v)?),
+                None => return Err(r.error(&entry, "needs file = \"SCENE.toml\"")),
+            };
+            let name = match scene.get("name") {
+                Some(v) => clean(&r.string(&format!("{entry}: name"), v)?),
+                None => clean(&scene_name(&scene_file)),
+            };
+            if scene_names.contains(&name) {
+                return Err(r.error(&entry, format!("a second scene named '{name}' (set name)")));
+            }
+            scene_names.push(name.clone());
+            let entry = format!("[[scene]] {name}");
+            let at_scene = root.below(&r, &entry, scene)?;
+            let cameras: Vec<Option<String>> = match scene.get("cameras") {
+                Some(v) => r
+                    .strings(&format!("{entry}: cameras"), v)?
+                    .into_iter()
+                    .map(Some)
+                    .collect(),
+                None => vec![None],
+            };
+            for camera in cameras {
+                let camera_name = camera.as_deref().map_or("cam0".to_string(), clean);
+                plan.views.push((name.clone(), camera_name.clone()));
+                let view = ViewSetup {
+                    scene: &name,
+                    camera: &camera,
+                    camera_name: &camera_name,
+                    scene_file: &scene_file,
+                };
+                let reference = match scene.get("reference") {
+                    Some(v) => Some(plan.add_reference(&r, &entry, &at_scene, &view, v)?),
+                    None => None,
+                };
+                for (g, group) in groups.iter().enumerate() {
+                    let group_entry = format!("[[group]] {}", g + 1);
+                    r.check_keys(&group_entry, group, GROUP_KEYS)?;
+                    if let Some(list) = group.get("scenes") {
+                        let wanted = r.strings(&format!("{group_entry}: scenes"), list)?;
+                        if !wanted.contains(&name) {
+                            continue;
+                        }
+                    }
+                    let at_group = at_scene.below(&r, &group_entry, group)?;
+                    renders.extend(plan.group_cells(
+                        &r,
+                        &group_entry,
+                        group,
+                        &at_group,
+                        &view,
+                        reference.clone(),
+                    )?);
+                }
+            }
+        }
+        for (g, group) in groups.iter().enumerate() {
+            if let Some(list) = group.get("scenes") {
+                let entry = format!("[[group]] {}: scenes", g + 1);
+                for wanted in r.strings(&entry, list)? {
+                    if !scene_names.contains(&wanted) {
+                        return Err(r.error(&entry, format!("no scene named '{wanted}'")));
+                    }
+                }
+            }
+        }
+        plan.cells.extend(renders);
+        for (i, cell) in plan.cells.iter().enumerate() {
+            if let Some(earlier) = plan.cells[..i].iter().find(|c| c.name == cell.name) {
+                if earlier.options != cell.options || earlier.budget != cell.budget {
+                    return Err(r.error(
+                        &cell.name,
+                        "two entries make this cell with different options or budgets",
+                    ));
+                }
+            }
+        }
+        // Entries that make the same cell twice (the same options) run it once.
+        let mut seen = std::collections::HashSet::new();
+        plan.cells.retain(|c| seen.insert(c.name.clone()));
+        Ok(plan)
+    }
+
+    fn cell_path(&self, name: &str) -> PathBuf {
+        self.output.join(format!("{name}.exr"))
+    }
+
+    /// The reference of one scene and camera: a file, or cells rendering it.
+    fn add_reference(
+        &mut self,
+        r: &Reader,
+        entry: &str,
+        inherited: &Inherited,
+        view: &ViewSetup,
+        value: &toml::Value,
+    ) -> Result<ReferenceSource, BatchError> {
+        let entry = format!("{entry}: reference");
+        let table = match value {
+            toml::Value::String(file) => {
+                let file = file.replace("{camera}", view.camera_name);
+                let dir = self.file.parent().unwrap_or(Path::new(""));
+                return Ok(ReferenceSource::File(dir.join(file)));
+            }
+            toml::Value::Table(t) => t,
+            _ => return Err(r.error(&entry, "expected a file or a table")),
+        };
+        r.check_keys(&entry, table, REFERENCE_KEYS)?;
+        let technique = match table.get("technique") {
+            Some(v) => {
+                let name = r.string(&entry, v)?;
+                Technique::from_name(&name)
+                    .ok_or_else(|| r.error(&entry, format!("unknown technique '{name}'")))?
+            }
+            None => Technique::Bpt,
+        };
+        let settings = Inherited {
+            budget: None,
+            ..inherited.clone()
+        }
+        .below(r, &entry, table)?;
+        let budget = settings
+            .budget
+            .ok_or_else(|| r.error(&entry, "needs budget = \"TIME\" or iterations = N"))?;
+        let parts = match table.get("parts") {
+            Some(v) => r.count(&format!("{entry}: parts"), v)?.max(1),
+            None => 1,
+        };
+        let seed = match table.get("seed") {
+            Some(v) => r.count(&format!("{entry}: seed"), v)?,
+            None => REFERENCE_SEED,
+        };
+        let base = format!("{}.{}.reference", view.scene, view.camera_name);
+        let mut options = settings.options(r, &entry, technique, &[])?;
+        options.camera = view.camera.clone();
+        if parts == 1 {
+            self.cells.push(Cell {
+                name: base.clone(),
+                output: self.cell_path(&base),
+                kind: CellKind::Reference,
+                scene: view.scene.into(),
+                camera: view.camera_name.into(),
+                scene_file: view.scene_file.into(),
+                options: RenderOptions { seed, ..options },
+                budget,
+                reference: None,
+                traces: Vec::new(),
+                variant: "reference".into(),
+            });
+            return Ok(ReferenceSource::Cell(self.cells.len() - 1));
+        }
+        let mut part_cells = Vec::new();
+        for k in 0..parts {
+            let name = format!("{base}.p{k}");
+            part_cells.push(self.cells.len());
+            self.cells.push(Cell {
+                output: self.cell_path(&name),
+                name,
+                kind: CellKind::Reference,
+                scene: view.scene.into(),
+                camera: view.camera_name.into(),
+                scene_file: view.scene_file.into(),
+                options: RenderOptions {
+                    seed: seed + k,
+                    ..options.clone()
+                },
+                budget: budget.split(parts),
+                reference: None,
+                traces: Vec::new(),
+                variant: "reference part".into(),
+            });
+        }
+        self.cells.push(Cell {
+            output: self.cell_path(&base),
+            name: base,
+            kind: CellKind::Merge { parts: part_cells },
+            scene: view.scene.into(),
+            camera: view.camera_name.into(),
+            scene_file: view.scene_file.into(),
+            options: RenderOptions { seed, ..options },
+            budget,
+            reference: None,
+            traces: Vec::new(),
+            variant: "reference".into(),
+        });
+        Ok(ReferenceSource::Cell(self.cells.len() - 1))
+    }
+
+    /// The render cells of one group for one scene and camera.
+    fn group_cells(
+        &self,
+        r: &Reader,
+        entry: &str,
+        group: &toml::Table,
+        inherited: &Inherited,
+        view: &ViewSetup,
+        reference: Option<ReferenceSource>,
+    ) -> Result<Vec<Cell>, BatchError> {
+        let techniques: Vec<Technique> = match group.get("techniques") {
+            Some(v) => r
+                .strings(&format!("{entry}: techniques"), v)?
+                .iter()
+                .map(|name| {
+                    Technique::from_name(name).ok_or_else(|| {
+                        r.error(
+                            &format!("{entry}: techniques"),
+                            format!("unknown technique '{name}'"),
+                        )
+                    })
+                })
+                .collect::<Result<_, _>>()?,
+            None => return Err(r.error(entry, "needs techniques = [..]")),
+        };
+        let radii: Vec<Option<f32>> = match group.get("radius") {
+            Some(v) => r
+                .radii(&format!("{entry}: radius"), v)?
+                .into_iter()
+                .map(Some)
+                .collect(),
+            None => vec![None],
+        };
+        let betas: Vec<f32> = match group.get("beta") {
+            Some(v) => r
+                .numbers(&format!("{entry}: beta"), v)?
+                .into_iter()
+                .map(|b| b as f32)
+                .collect(),
+            None => vec![RenderOptions::DEFAULT.beta],
+        };
+        let budget = inherited
+            .budget
+            .ok_or_else(|| r.error(entry, "no budget: set budget or iterations here or above"))?;
+        let mut cells = Vec::new();
+        for &technique in &techniques {
+            // Radii are for the techniques that merge; the others get one cell.
+            let radii: &[Option<f32>] = if technique.merges() { &radii } else { &[None] };
+            for &beta in &betas {
+                let base = inherited.options(
+                    r,
+                    entry,
+                    technique,
+                    &[("beta", toml::Value::Float(beta as f64))],
+                )?;
+                let variant = variant_name(&base);
+                for &radius in radii {
+                    for &seed in &inherited.seeds {
+                        let options = RenderOptions {
+                            radius,
+                            seed,
+                            camera: view.camera.clone(),
+                            ..base.clone()
+                        };
+                        options.validate().map_err(|e| r.error(entry, e))?;
+                        let mut name = format!("{}.{}.{variant}", view.scene, view.camera_name);
+                        if let Some(radius) = radius {
+                            name.push_str(&format!(".r{}", number_part(radius)));
+                        }
+                        if seed != RenderOptions::DEFAULT.seed {
+                            name.push_str(&format!(".s{seed}"));
+                        }
+                        cells.push(Cell {
+                            output: self.cell_path(&name),
+                            name,
+                            kind: CellKind::Render,
+                            scene: view.scene.into(),
+                            camera: view.camera_name.into(),
+                            scene_file: view.scene_file.into(),
+                            options,
+                            budget,
+                            reference: reference.clone(),
+                            traces: inherited.traces.clone(),
+                            variant: variant.clone(),
+                        });
+                    }
+                }
+            }
+        }
+        Ok(cells)
+    }
+}
+
+struct ViewSetup<'a> {
+    scene: &'a str,
+    camera: &'a Option<String>,
+    camera_name: &'a str,
+    scene_file: &'a Path,
+}
+
+/// A number in a file name: `0.01` as `0_01`.
+fn number_part(x: f32) -> String {
+    x.to_string().replace('.', "_").replace('-', "m")
+}
+
+/// The technique and every option that differs from its default but the radius, seed, camera
+/// and resolution: `vcm`, `upg.no-vc.min-path-length3`, `vcm.beta1`. Column names of the
+/// report's tables and the middle of cell names.
+pub fn variant_name(o: &RenderOptions) -> String {
+    let mut name = o.technique.name().to_string();
+    for rule in RULES {
+        if matches!(rule.name, "radius" | "resolution") || !(rule.is_set)(o) {
+            continue;
+        }
+        let flag = rule.name.replace('_', "-");
+        match super::cell::option_value(o, rule.name) {
+            Some(value) => name.push_str(&format!(".{flag}{}", value.replace(['.', ','], "_"))),
+            None => name.push_str(&format!(".{flag}")),
+        }
+    }
+    name
+}

@@ -1,0 +1,438 @@
+//! What a plan needs now, and running it: `status`, `--dry-run`, the in-process runner with its
+//! progress bar, `--jobs` command lines and `--slurm` array scripts.
+
+use super::cell::{make_output, Action, Budget, Cell, CellKind, ReferenceSource, State};
+use super::{BatchError, Plan};
+use crate::accel::AccelKind;
+use crate::film::atomic_write;
+use crate::render::{self, NewRender, RenderError, StopAfter, StopFlag};
+use crate::scene::Scene;
+use std::fmt::Write as _;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::Ordering;
+use std::time::Duration;
+
+fn states(plan: &Plan) -> Vec<State> {
+    plan.cells.iter().map(|c| c.state(&plan.cells)).collect()
+}
+
+fn is_done(state: &State) -> bool {
+    matches!(state, State::Done { .. })
+}
+
+/// The actions that bring the plan up to date, in the order they can run: each cell's once
+/// the cells it waits for have theirs. With `now_only`, just those that can run now.
+fn planned(plan: &Plan, states: &[State], now_only: bool) -> Vec<(usize, Action)> {
+    let mut done: Vec<bool> = states.iter().map(is_done).collect();
+    let mut out: Vec<(usize, Action)> = Vec::new();
+    loop {
+        let before = out.len();
+        let snapshot = done.clone();
+        for (i, cell) in plan.cells.iter().enumerate() {
+            if done[i] || out.iter().any(|(j, _)| *j == i) {
+                continue;
+            }
+            if let Some(action) = cell.action(&states[i], &plan.cells, &|j| snapshot[j]) {
+                out.push((i, action));
+                done[i] = true;
+            }
+        }
+        if now_only || out.len() == before {
+            return out;
+        }
+    }
+}
+
+/// One line per cell (state, name, what it holds or waits for), then a summary.
+pub fn status(plan: &Plan) -> String {
+    let states = states(plan);
+    let now = planned(plan, &states, true);
+    let mut text = String::new();
+    let mut counts = [0usize; 4];
+    for (i, (cell, state)) in plan.cells.iter().zip(&states).enumerate() {
+        counts[match state {
+            State::Done { .. } => 0,
+            State::Partial { .. } => 1,
+            State::Missing => 2,
+            State::Stale { .. } => 3,
+        }] += 1;
+        let detail = match state {
+            State::Done { metadata } | State::Partial { metadata, .. } => {
+                let mut d = format!(
+                    "{} it, {:.1} s of {}",
+                    metadata.iterations,
+                    metadata.render_seconds,
+                    cell.budget.describe()
+                );
+                if let Some(e) = metadata.errors.last() {
+                    let _ = write!(d, ", mae {:.4e}, rmse {:.4e}", e.mae, e.rmse);
+                }
+                d
+            }
+            State::Stale { reason } => reason.clone(),
+            State::Missing => String::new(),
+        };
+        let runnable = now.iter().any(|(j, _)| *j == i);
+        let waits = if is_done(state) || runnable {
+            ""
+        } else {
+            " (waits for its reference or parts)"
+        };
+        let _ = writeln!(
+            text,
+            "{:<8} {}{}{detail}{waits}",
+            state.word(),
+            cell.name,
+            if detail.is_empty() { "" } else { "  " },
+        );
+    }
+    let _ = writeln!(
+        text,
+        "{} cells: {} done, {} partial, {} missing, {} stale; {} can run now",
+        plan.cells.len(),
+        counts[0],
+        counts[1],
+        counts[2],
+        counts[3],
+        now.len()
+    );
+    text
+}
+
+fn describe(action: &Action) -> String {
+    match action {
+        Action::Render => "render".into(),
+        Action::Continue(left) => format!("continue ({} left)", left.describe()),
+        Action::Merge(parts) => format!("merge {} parts", parts.len()),
+    }
+}
+
+/// What running the plan would do, in order, without doing it.
+pub fn dry_run(plan: &Plan) -> String {
+    let states = states(plan);
+    let all = planned(plan, &states, false);
+    let mut text = String::new();
+    for (i, action) in &all {
+        let _ = writeln!(text, "{:<28} {}", describe(action), plan.cells[*i].name);
+    }
+    let blocked: Vec<&Cell> = plan
+        .cells
+        .iter()
+        .zip(&states)
+        .enumerate()
+        .filter(|(i, (_, s))| !is_done(s) && !all.iter().any(|(j, _)| j == i))
+        .map(|(_, (c, _))| c)
+        .collect();
+    for cell in &blocked {
+        if let Some(ReferenceSource::File(f)) = &cell.reference {
+            let _ = writeln!(
+                text,
+                "cannot run {}: no reference {}",
+                cell.name,
+                f.display()
+            );
+        }
+    }
+    let _ = writeln!(
+        text,
+        "{} of {} cells would run",
+        all.len(),
+        plan.cells.len()
+    );
+    text
+}
+
+/// A shell word: quoted unless it is made of safe characters alone.
+fn quote(word: &str) -> String {
+    let safe = |c: char| c.is_ascii_alphanumeric() || "_./=,:+-@%".contains(c);
+    if !word.is_empty() && word.chars().all(safe) {
+        word.to_string()
+    } else {
+        format!("'{}'", word.replace('\'', "'\\''"))
+    }
+}
+
+fn command_line(program: &Path, args: &[String]) -> String {
+    let mut words = vec![quote(&program.to_string_lossy())];
+    words.extend(args.iter().map(|a| quote(a)));
+    words.join(" ")
+}
+
+/// The command lines of the cells that can run now, references first, and how many cells wait
+/// for them. `program` is the `vmerge` to call. Run them with `parallel -j N`, `xargs -P N` or
+/// anything else, then ask again until nothing is left.
+pub fn jobs(plan: &Plan, program: &Path) -> Result<(Vec<String>, usize), BatchError> {
+    make_output(&plan.output)?;
+    let states = states(plan);
+    let now = planned(plan, &states, true);
+    let later = planned(plan, &states, false).len() - now.len();
+    let lines = now
+        .iter()
+        .map(|(i, action)| {
+            let args = plan.cells[*i].arguments(action, &plan.cells, plan.threads, plan.snapshot);
+            command_line(program, &args)
+        })
+        .collect();
+    Ok((lines, later))
+}
+
+/// Slurm's `D-HH:MM:SS`.
+fn slurm_time(t: Duration) -> String {
+    let s = t.as_secs();
+    format!(
+        "{}-{:02}:{:02}:{:02}",
+        s / 86400,
+        s / 3600 % 24,
+        s / 60 % 60,
+        s % 60
+    )
+}
+
+/// Writes to `file` an `sbatch --array` script with one array task per cell that can run now
+/// (the [`jobs`] lines, task i running line i) and the plan's threads as each task's cores.
+/// Returns the number of tasks and of the cells that wait for them.
+pub fn slurm(plan: &Plan, program: &Path, file: &Path) -> Result<(usize, usize), BatchError> {
+    let (lines, later) = jobs(plan, program)?;
+    let states = states(plan);
+    let now = planned(plan, &states, true);
+    let mut s = String::from("#!/usr/bin/env bash\n");
+    let _ = writeln!(
+        s,
+        "# vmerge batch {}: {} cells, one array task each.",
+        plan.file.display(),
+        lines.len()
+    );
+    if later > 0 {
+        let _ = writeln!(
+            s,
+            "# {later} more cells wait for these; write the script again once they are done."
+        );
+    }
+    let _ = writeln!(s, "#SBATCH --job-name=vmerge-batch");
+    if !lines.is_empty() {
+        let _ = writeln!(s, "#SBATCH --array=0-{}", lines.len() - 1);
+    }
+    if let Some(n) = plan.threads {
+        let _ = writeln!(s, "#SBATCH --cpus-per-task={n}");
+    }
+    // Time budgets bound a task's run: the longest, a fifth more and ten minutes for loading.
+    let times: Option<Vec<Duration>> = now
+        .iter()
+        .map(|(i, action)| match (action, plan.cells[*i].budget) {
+            (Action::Merge(_), _) => Some(Duration::ZERO),
+            (_, Budget::Time(t)) => Some(t),
+            _ => None,
+        })
+        .collect();
+    if let Some(longest) = times.and_then(|t| t.into_iter().max()) {
+        let limit = longest.mul_f64(1.2) + Duration::from_secs(600);
+        let _ = writeln!(s, "#SBATCH --time={}", slurm_time(limit));
+    }
+    let log = plan.output.join("slurm-%A_%a.log");
+    let _ = writeln!(s, "#SBATCH --output={}", quote(&log.to_string_lossy()));
+    s.push_str("set -euo pipefail\n");
+    s.push_str("case \"${SLURM_ARRAY_TASK_ID:?set by sbatch --array}\" in\n");
+    for (i, line) in lines.iter().enumerate() {
+        let _ = writeln!(s, "    {i}) exec {line} ;;");
+    }
+    s.push_str(
+        "    *) echo \"no array task $SLURM_ARRAY_TASK_ID in this script\" >&2; exit 2 ;;\n",
+    );
+    s.push_str("esac\n");
+    atomic_write(file, |f| f.write_all(s.as_bytes())).map_err(|e| BatchError::Write {
+        file: file.into(),
+        message: e.to_string(),
+    })?;
+    Ok((lines.len(), later))
+}
+
+/// What the in-process runner reports.
+#[derive(Clone, Debug)]
+pub enum Event<'a> {
+    /// The run begins with this many cells to bring up to date.
+    Plan { cells: usize },
+    /// A cell begins.
+    Cell { name: &'a str, action: &'a Action },
+    /// An iteration of the current cell finished.
+    Iteration { iterations: u64, elapsed: Duration },
+    /// The current cell is up to date.
+    Finished,
+}
+
+/// An `indicatif` bar over a plan's cells, with the current cell and its iterations.
+pub struct ProgressBar {
+    bar: indicatif::ProgressBar,
+    cell: String,
+}
+
+impl Default for ProgressBar {
+    fn default() -> Self {
+        let bar = indicatif::ProgressBar::new(0);
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{elapsed_precise} [{bar:30}] {pos}/{len} cells, ETA {eta} {msg}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        ProgressBar {
+            bar,
+            cell: String::new(),
+        }
+    }
+}
+
+impl ProgressBar {
+    pub fn show(&mut self, event: &Event) {
+        match event {
+            Event::Plan { cells } => self.bar.set_length(*cells as u64),
+            Event::Cell { name, action } => {
+                self.cell = format!("{} {name}", describe(action));
+                self.bar.set_message(self.cell.clone());
+            }
+            Event::Iteration {
+                iterations,
+                elapsed,
+            } => self.bar.set_message(format!(
+                "{}: {iterations} it, {:.1} s",
+                self.cell,
+                elapsed.as_secs_f64()
+            )),
+            Event::Finished => self.bar.inc(1),
+        }
+    }
+
+    pub fn finish(&self) {
+        self.bar.finish();
+    }
+}
+
+fn render_error(cell: &Cell) -> impl Fn(RenderError) -> BatchError + '_ {
+    |source| BatchError::Render {
+        cell: cell.name.clone(),
+        source,
+    }
+}
+
+fn stop_after(budget: Budget, earlier_iterations: u64) -> StopAfter {
+    match budget {
+        Budget::Iterations(n) => StopAfter {
+            iterations: Some(earlier_iterations + n),
+            time: None,
+        },
+        Budget::Time(t) => StopAfter {
+            iterations: None,
+            time: Some(t),
+        },
+    }
+}
+
+/// Runs every cell that needs it, references first, in this process (on rayon's global pool,
+/// which the caller sizes to the plan's threads): a cell's action, then the cells that waited
+/// for it. Stops after the current iteration when `stop` is raised (the
+/// cell is written and continues next time). Returns the number of cells run.
+pub fn run(
+    plan: &Plan,
+    accel: AccelKind,
+    stop: &StopFlag,
+    on: &mut dyn FnMut(&Event),
+) -> Result<usize, BatchError> {
+    make_output(&plan.output)?;
+    let mut states = states(plan);
+    let work = planned(plan, &states, false).len();
+    on(&Event::Plan { cells: work });
+    let mut scene: Option<(PathBuf, Scene)> = None;
+    let mut ran = 0;
+    let mut tried = vec![false; plan.cells.len()];
+    while !stop.load(Ordering::Relaxed) {
+        let next = planned(plan, &states, true)
+            .into_iter()
+            .find(|(i, _)| !tried[*i]);
+        let Some((i, action)) = next else {
+            break;
+        };
+        tried[i] = true;
+        let cell = &plan.cells[i];
+        on(&Event::Cell {
+            name: &cell.name,
+            action: &action,
+        });
+        run_cell(plan, cell, &action, accel, stop, &mut scene, on)?;
+        ran += 1;
+        on(&Event::Finished);
+        // This cell and those measured against it or merged from it.
+        for (j, other) in plan.cells.iter().enumerate() {
+            let depends = j == i
+                || other.reference == Some(ReferenceSource::Cell(i))
+                || matches!(&other.kind, CellKind::Merge { parts } if parts.contains(&i));
+            if depends {
+                states[j] = other.state(&plan.cells);
+            }
+        }
+    }
+    Ok(ran)
+}
+
+fn run_cell(
+    plan: &Plan,
+    cell: &Cell,
+    action: &Action,
+    accel: AccelKind,
+    stop: &StopFlag,
+    cached: &mut Option<(PathBuf, Scene)>,
+    on: &mut dyn FnMut(&Event),
+) -> Result<(), BatchError> {
+    let err = render_error(cell);
+    let mut progress = |p: &render::Progress| {
+        on(&Event::Iteration {
+            iterations: p.iterations,
+            elapsed: p.elapsed,
+        })
+    };
+    match action {
+        Action::Merge(parts) => Ok(crate::tools::merge(&cell.output, parts)?),
+        Action::Render => {
+            let setup = NewRender {
+                scene: cell.scene_file.clone(),
+                options: cell.options.clone(),
+                accel,
+                lenient: false,
+                output: cell.output.clone(),
+                png: true,
+                snapshot_every: plan.snapshot,
+                reference: cell.reference_file(&plan.cells).map(PathBuf::from),
+                traces: cell.traces.clone(),
+                memory_limit: None,
+            };
+            // Cells of one scene follow each other: the last scene is kept.
+            if cached.as_ref().is_none_or(|(p, _)| *p != cell.scene_file) {
+                *cached = None;
+                let loaded = setup.load_scene().map_err(|e| err(RenderError::Scene(e)))?;
+                *cached = Some((cell.scene_file.clone(), loaded));
+            }
+            let Some((_, scene)) = cached.as_ref() else {
+                return Ok(());
+            };
+            let mut job = setup.job(scene).map_err(&err)?;
+            job.run(stop_after(cell.budget, 0), stop, &mut progress)
+                .map_err(&err)
+        }
+        Action::Continue(left) => {
+            let (film, metadata) = crate::film::exr::read_render(&cell.output)?;
+            let scene = render::load_for_continue(&metadata, accel, false).map_err(&err)?;
+            let earlier = film.iterations;
+            let mut job = render::continued_job(
+                &scene,
+                film,
+                metadata,
+                cell.output.clone(),
+                true,
+                plan.snapshot,
+                None,
+            )
+            .map_err(&err)?;
+            job.run(stop_after(*left, earlier), stop, &mut progress)
+                .map_err(&err)
+        }
+    }
+}

@@ -1,0 +1,504 @@
+//! `vmerge batch`: a small plan run through GNU parallel from `--jobs`, resumed, re-run, and
+//! reported (the report opened in headless Chromium); `--slurm` scripts run by hand; bad
+//! plans refused.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::SystemTime;
+use vmerge::tools::{self, batch::Plan};
+
+fn vmerge() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_vmerge"))
+}
+
+fn scene(name: &str) -> String {
+    format!("{}/scenes/{name}/scene.toml", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Whether `program` runs here; tests that need it say so and stop when it does not.
+fn have(program: &str) -> bool {
+    let found = Command::new(program)
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !found {
+        eprintln!("skipped: {program} is not installed (scripts/setup-debian installs it)");
+    }
+    found
+}
+
+/// Runs `vmerge ARGS` and returns stdout, asserting success.
+fn run(args: &[&str]) -> String {
+    let out = vmerge().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "vmerge {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+const TECHNIQUES: [&str; 3] = ["vcm", "upg", "upg-camera"];
+const RADII: [&str; 3] = ["0_02", "0_05", "0_1"];
+const SCENES: [&str; 2] = ["cornell-box", "indirect"];
+
+fn write_plan(dir: &Path, traces: &str) -> PathBuf {
+    let plan = dir.join("plan.toml");
+    let text = format!(
+        r#"output = "results"
+resolution = [32, 32]
+iterations = 4
+traces = [{traces}]
+[[scene]]
+file = "{}"
+cameras = ["front"]
+reference = {{ technique = "bpt", iterations = 64, parts = 2 }}
+[[scene]]
+file = "{}"
+cameras = ["front"]
+reference = {{ technique = "bpt", iterations = 64 }}
+[[group]]
+techniques = ["vcm", "upg", "upg-camera"]
+radius = [0.02, 0.05, 0.1]
+"#,
+        scene(SCENES[0]),
+        scene(SCENES[1])
+    );
+    std::fs::write(&plan, text).unwrap();
+    plan
+}
+
+/// Every cell of the plan above, by the name its parameters give it.
+fn cell_names() -> Vec<String> {
+    let mut names = vec![
+        "cornell-box.front.reference.p0".to_string(),
+        "cornell-box.front.reference.p1".into(),
+        "cornell-box.front.reference".into(),
+        "indirect.front.reference".into(),
+    ];
+    for s in SCENES {
+        for t in TECHNIQUES {
+            for r in RADII {
+                names.push(format!("{s}.front.{t}.r{r}"));
+            }
+        }
+    }
+    names
+}
+
+/// `--jobs` piped to `parallel -j 2` until it prints nothing; returns the rounds it took.
+fn run_with_parallel(plan: &Path, dir: &Path) -> usize {
+    for round in 0..5 {
+        let jobs = run(&["batch", plan.to_str().unwrap(), "--jobs"]);
+        if jobs.trim().is_empty() {
+            return round;
+        }
+        let mut child = Command::new("parallel")
+            .args(["-j", "2", "--halt", "now,fail=1"])
+            .current_dir(dir)
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        use std::io::Write;
+        child
+            .stdin
+            .take()
+            .unwrap()
+            .write_all(jobs.as_bytes())
+            .unwrap();
+        let out = child.wait_with_output().unwrap();
+        assert!(
+            out.status.success(),
+            "parallel: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    panic!("--jobs still prints commands after 5 rounds");
+}
+
+fn modification_times(dir: &Path) -> BTreeMap<PathBuf, SystemTime> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "exr" || e == "png"))
+        .map(|p| {
+            let t = std::fs::metadata(&p).unwrap().modified().unwrap();
+            (p, t)
+        })
+        .collect()
+}
+
+/// A report's table read back from CSV.
+struct CsvTable {
+    variants: Vec<String>,
+    /// (radius, one value per variant).
+    rows: Vec<(String, Vec<Option<f64>>)>,
+    /// Each variant's best radius.
+    best: Vec<String>,
+}
+
+fn read_csv(path: &Path) -> CsvTable {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+    let mut rows = Vec::new();
+    let mut best = Vec::new();
+    for line in lines {
+        let fields: Vec<&str> = line.split(',').collect();
+        if fields[0] == "best" {
+            best = fields[1..].iter().map(|s| s.to_string()).collect();
+        } else {
+            let values = fields[1..].iter().map(|v| v.parse().ok()).collect();
+            rows.push((fields[0].to_string(), values));
+        }
+    }
+    CsvTable {
+        variants: header[1..].to_vec(),
+        rows,
+        best,
+    }
+}
+
+/// The report's best-radius tables hold the final errors the cells' EXRs record, and mark
+/// each technique's lowest.
+fn check_tables(results: &Path) {
+    for s in SCENES {
+        for (metric, pick) in [("mae", 0), ("rmse", 1)] {
+            let csv = results.join(format!("report/tables/{s}.front.{metric}.csv"));
+            let CsvTable {
+                variants,
+                rows,
+                best,
+            } = read_csv(&csv);
+            assert_eq!(variants, TECHNIQUES);
+            assert_eq!(rows.len(), RADII.len());
+            for (c, t) in TECHNIQUES.iter().enumerate() {
+                let mut lowest: Option<(String, f64)> = None;
+                for (r, radius) in RADII.iter().enumerate() {
+                    let m = tools::metadata(&results.join(format!("{s}.front.{t}.r{radius}.exr")))
+                        .unwrap();
+                    let last = m.errors.last().expect("an error series");
+                    let recorded = [last.mae, last.rmse][pick];
+                    assert_eq!(rows[r].0, radius.replace('_', "."));
+                    assert_eq!(rows[r].1[c], Some(recorded), "{s} {t} r {radius} {metric}");
+                    if lowest.as_ref().is_none_or(|(_, v)| recorded < *v) {
+                        lowest = Some((rows[r].0.clone(), recorded));
+                    }
+                }
+                assert_eq!(best[c], lowest.unwrap().0, "{s} {t} {metric}: best radius");
+            }
+        }
+    }
+}
+
+/// Mean pixel values of a render, for comparing two of them bit for bit.
+fn pixels(path: &Path) -> Vec<[f32; 3]> {
+    let (film, _) = vmerge::film::exr::read_render(path).unwrap();
+    film.mean().iter().map(|p| p.to_array()).collect()
+}
+
+#[test]
+fn plan_runs_through_parallel_resumes_and_reports() {
+    if !have("parallel") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let plan = write_plan(dir.path(), r#""8x8x4""#);
+    let plan_arg = plan.to_str().unwrap();
+    let results = dir.path().join("results");
+    // Reference parts, then their merge and the other scene's cells, then the rest.
+    let rounds = run_with_parallel(&plan, dir.path());
+    assert_eq!(rounds, 3);
+    for name in cell_names() {
+        assert!(results.join(format!("{name}.exr")).exists(), "{name}");
+    }
+    let status = run(&["batch", "status", plan_arg]);
+    assert!(status.contains("22 cells: 22 done"), "{status}");
+
+    run(&["batch", "report", plan_arg]);
+    check_tables(&results);
+
+    // Nothing left to do: no command printed, nothing rendered in-process, no file touched.
+    let before = modification_times(&results);
+    assert_eq!(run(&["batch", plan_arg, "--jobs"]), "");
+    let out = vmerge().args(["batch", plan_arg]).output().unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("0 cells rendered"));
+    assert_eq!(modification_times(&results), before);
+
+    // A deleted cell is the one command printed, and the only file rendered again.
+    let gone = results.join("indirect.front.upg.r0_05.exr");
+    let original = pixels(&gone);
+    std::fs::remove_file(&gone).unwrap();
+    let jobs = run(&["batch", plan_arg, "--jobs"]);
+    assert_eq!(jobs.lines().count(), 1, "{jobs}");
+    assert!(jobs.contains(" render ") && jobs.contains("indirect.front.upg.r0_05.exr"));
+    let out = vmerge().args(["batch", plan_arg]).output().unwrap();
+    assert!(String::from_utf8_lossy(&out.stderr).contains("1 cells rendered"));
+    let after = modification_times(&results);
+    let changed: Vec<&PathBuf> = after
+        .iter()
+        .filter(|(p, t)| before.get(*p) != Some(t))
+        .map(|(p, _)| p)
+        .collect();
+    assert_eq!(
+        changed,
+        [&gone, &gone.with_extension("png")],
+        "only the deleted cell is rendered again"
+    );
+    assert_eq!(pixels(&gone), original);
+
+    // An interrupted cell (written after 2 of its 4 iterations, as a signal or a snapshot
+    // leaves it) continues where it stopped and ends with the same image.
+    std::fs::remove_file(&gone).unwrap();
+    let command = run(&["batch", plan_arg, "--jobs"]);
+    let interrupted = command.trim().replace(" -n 4 ", " -n 2 ");
+    assert_ne!(interrupted, command.trim());
+    let status = Command::new("bash")
+        .args(["-c", &interrupted])
+        .current_dir(dir.path())
+        .output()
+        .unwrap();
+    assert!(status.status.success());
+    let state = run(&["batch", "status", plan_arg]);
+    assert!(
+        state.contains("partial  indirect.front.upg.r0_05  2 it"),
+        "{state}"
+    );
+    let jobs = run(&["batch", plan_arg, "--jobs"]);
+    assert!(
+        jobs.contains(" continue ") && jobs.contains(" -n 2") && jobs.lines().count() == 1,
+        "{jobs}"
+    );
+    assert_eq!(run_with_parallel(&plan, dir.path()), 1);
+    assert_eq!(pixels(&gone), original);
+    let m = tools::metadata(&gone).unwrap();
+    assert_eq!((m.iterations, m.errors.last().unwrap().iterations), (4, 4));
+
+    // A changed entry (other trace windows) re-renders the cells it makes, not the
+    // references.
+    write_plan(dir.path(), r#""8x8x4", "20x20x4""#);
+    let dry = run(&["batch", plan_arg, "--dry-run"]);
+    assert!(dry.contains("18 of 22 cells would run"), "{dry}");
+    assert!(!dry.contains("reference"), "{dry}");
+    write_plan(dir.path(), r#""8x8x4""#);
+
+    check_in_chromium(&results.join("report"));
+}
+
+/// Distinct colours and strongly coloured pixels of an RGB(A) PNG.
+fn colour_counts(path: &Path) -> (usize, usize) {
+    let decoder = png::Decoder::new(std::fs::File::open(path).unwrap());
+    let mut reader = decoder.read_info().unwrap();
+    let mut buffer = vec![0; reader.output_buffer_size()];
+    let info = reader.next_frame(&mut buffer).unwrap();
+    let channels = info.color_type.samples();
+    let pixels: Vec<&[u8]> = buffer[..info.buffer_size()]
+        .chunks(channels)
+        .map(|p| &p[..3])
+        .collect();
+    let coloured = pixels
+        .iter()
+        .filter(|p| {
+            let (lo, hi) = (p.iter().min().unwrap(), p.iter().max().unwrap());
+            hi - lo > 60
+        })
+        .count();
+    let mut distinct = pixels.clone();
+    distinct.sort_unstable();
+    distinct.dedup();
+    (distinct.len(), coloured)
+}
+
+/// The values of `attribute="..."` in an HTML text.
+fn attribute_values(html: &str, attribute: &str) -> Vec<String> {
+    let key = format!(" {attribute}=\"");
+    html.split(&key)
+        .skip(1)
+        .filter_map(|rest| rest.split('"').next().map(String::from))
+        .collect()
+}
+
+/// Opens the report in headless Chromium: the screenshot shows the coloured thumbnails and
+/// charts (a page of text alone is grey), and every image and link of the DOM Chromium built
+/// names a file that exists.
+fn check_in_chromium(report: &Path) {
+    if !have("chromium") {
+        return;
+    }
+    let index = report.join("index.html");
+    let url = format!("file://{}", index.display());
+    let profile = tempfile::tempdir().unwrap();
+    // Bounded, so that a Chromium that hangs fails the test (exit status 124) instead of
+    // holding up the suite; `timeout` ends its whole process group.
+    let chromium = |extra: &[&str]| {
+        Command::new("timeout")
+            .args(["--kill-after=5", "120", "chromium"])
+            .args([
+                "--headless",
+                "--no-sandbox",
+                "--disable-gpu",
+                "--disable-quic",
+                "--no-first-run",
+                "--disable-background-networking",
+                "--disable-component-update",
+                "--disable-sync",
+                "--window-size=1280,2400",
+            ])
+            .arg(format!("--user-data-dir={}", profile.path().display()))
+            .args(extra)
+            .arg(&url)
+            .output()
+            .unwrap()
+    };
+    let shot = profile.path().join("shot.png");
+    let out = chromium(&[&format!("--screenshot={}", shot.display())]);
+    assert!(out.status.success() && shot.exists(), "{out:?}");
+    let (distinct, coloured) = colour_counts(&shot);
+    assert!(distinct > 500, "a blank screenshot: {distinct} colours");
+    assert!(coloured > 20_000, "only {coloured} coloured pixels");
+
+    let dom = chromium(&["--dump-dom"]);
+    assert!(dom.status.success(), "chromium --dump-dom: {}", dom.status);
+    let dom = String::from_utf8(dom.stdout).unwrap();
+    let images = attribute_values(&dom, "src");
+    // Per view: the reference and each technique's best cell, the radius chart, a
+    // convergence chart per technique.
+    assert_eq!(images.len(), SCENES.len() * (1 + 3 + 1 + 3), "{images:?}");
+    assert!(images.iter().any(|i| i.contains("reference")));
+    let links = attribute_values(&dom, "href");
+    assert!(links.len() >= images.len());
+    for target in images.iter().chain(&links) {
+        assert!(!target.contains("://"), "{target} is not a relative link");
+        assert!(report.join(target).exists(), "{target} is missing");
+    }
+}
+
+/// A plan whose cells run from an `sbatch --array` script, each task run by hand with
+/// `SLURM_ARRAY_TASK_ID` set, stage after stage.
+#[test]
+fn slurm_script_runs_each_task_by_hand() {
+    let dir = tempfile::tempdir().unwrap();
+    let plan = dir.path().join("plan.toml");
+    std::fs::write(
+        &plan,
+        format!(
+            r#"output = "out"
+resolution = [16, 16]
+iterations = 2
+threads = 2
+[[scene]]
+file = "{}"
+cameras = ["floor"]
+reference = {{ iterations = 16, parts = 2 }}
+[[group]]
+techniques = ["vcm", "upg"]
+radius = [0.05, 0.1]
+"#,
+            scene("cornell-box")
+        ),
+    )
+    .unwrap();
+    let plan_arg = plan.to_str().unwrap();
+    let script = dir.path().join("cells.sbatch");
+    let mut tasks_run = 0;
+    for _ in 0..4 {
+        let jobs = run(&["batch", plan_arg, "--jobs"]);
+        if jobs.is_empty() {
+            break;
+        }
+        run(&["batch", plan_arg, "--slurm", script.to_str().unwrap()]);
+        let text = std::fs::read_to_string(&script).unwrap();
+        let syntax = Command::new("bash")
+            .arg("-n")
+            .arg(&script)
+            .status()
+            .unwrap();
+        assert!(syntax.success(), "bash -n: {text}");
+        let n = jobs.lines().count();
+        assert!(
+            text.contains(&format!("#SBATCH --array=0-{}\n", n - 1)),
+            "{text}"
+        );
+        assert!(text.contains("#SBATCH --cpus-per-task=2\n"));
+        let tasks = text.lines().filter(|l| l.contains(") exec ")).count();
+        assert_eq!(tasks, n);
+        for i in 0..n {
+            let status = Command::new("bash")
+                .arg(&script)
+                .env("SLURM_ARRAY_TASK_ID", i.to_string())
+                .current_dir(dir.path())
+                .output()
+                .unwrap();
+            assert!(status.status.success(), "task {i}: {status:?}");
+            tasks_run += 1;
+        }
+        let past = Command::new("bash")
+            .arg(&script)
+            .env("SLURM_ARRAY_TASK_ID", n.to_string())
+            .output()
+            .unwrap();
+        assert_eq!(past.status.code(), Some(2));
+    }
+    // Two reference parts, their merge, four cells.
+    assert_eq!(tasks_run, 7);
+    let status = run(&["batch", "status", plan_arg]);
+    assert!(status.contains("7 cells: 7 done"), "{status}");
+    let loaded = Plan::load(&plan).unwrap();
+    assert!(loaded.cells.iter().all(|c| c.output.exists()));
+}
+
+/// Bad plans: exit code 2, a message naming the plan file and the entry, nothing written.
+#[test]
+fn bad_plans_exit_2_and_name_the_entry() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = format!(
+        "output = \"out\"\niterations = 2\n[[scene]]\nfile = \"{}\"\n",
+        scene("cornell-box")
+    );
+    let cases = [
+        (
+            "[[group]]\ntechniques = [\"vcmx\"]\n",
+            "[[group]] 1: techniques",
+        ),
+        (
+            "[[group]]\ntechniques = [\"vcm\"]\ncolour = 3\n",
+            "unknown key 'colour'",
+        ),
+        (
+            "[[group]]\ntechniques = [\"vcm\"]\nradius = { from = 0.1, to = 0.01, steps = 3 }\n",
+            "[[group]] 1: radius",
+        ),
+        (
+            "[[group]]\ntechniques = [\"upg\"]\nalpha = 0.5\n",
+            "[[group]] 1 (upg): --alpha does not apply to upg",
+        ),
+        (
+            "[[group]]\ntechniques = [\"vcm\"]\nradius = [0.01, -1]\n",
+            "radius -1",
+        ),
+        (
+            "[[group]]\ntechniques = [\"vcm\"]\nscenes = [\"nowhere\"]\n",
+            "no scene named 'nowhere'",
+        ),
+    ];
+    for (i, (group, expected)) in cases.iter().enumerate() {
+        let plan = dir.path().join(format!("bad{i}.toml"));
+        std::fs::write(&plan, format!("{base}{group}")).unwrap();
+        let out = vmerge()
+            .args(["batch", plan.to_str().unwrap(), "--jobs"])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{group}: {stderr}");
+        assert!(
+            stderr.contains(&format!("bad{i}.toml")) && stderr.contains(expected),
+            "{group}: {stderr}"
+        );
+        assert!(!dir.path().join("out").exists(), "{group}: wrote output");
+    }
+}
