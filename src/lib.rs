@@ -16,6 +16,7 @@ pub mod integrator;
 pub mod light;
 pub mod memory;
 pub mod options;
+pub mod preview;
 pub mod render;
 pub mod sampling;
 pub mod scene;

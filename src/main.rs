@@ -3,6 +3,7 @@
 use anyhow::{Context, Result};
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
 use clap::{Args, Parser, Subcommand};
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
@@ -71,8 +72,24 @@ enum Command {
         #[arg(long, value_parser = metric_parser(), default_value = "rmse")]
         metric: Metric,
     },
+    /// Serve a page showing renders: exposure, metadata, error chart, split comparison.
+    View {
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Where to serve (loopback unless told otherwise).
+        #[arg(long, value_name = "ADDR", default_value = vmerge::preview::DEFAULT_ADDRESS)]
+        address: SocketAddr,
+    },
     /// Run a plan of renders (or print its cells' commands), show its state, write its report.
     Batch(BatchArgs),
+}
+
+/// `--preview [ADDR]`: a live page of the render at ADDR (default: loopback, any free port).
+#[derive(Args)]
+struct PreviewArg {
+    /// Serve a live page of the render (default 127.0.0.1:0: loopback, a free port; the URL is printed).
+    #[arg(long, value_name = "ADDR", num_args = 0..=1, default_missing_value = vmerge::preview::DEFAULT_ADDRESS)]
+    preview: Option<SocketAddr>,
 }
 
 #[derive(Args)]
@@ -121,6 +138,8 @@ struct RenderArgs {
     /// The memory the render may use, e.g. 8G (default: what the machine has available).
     #[arg(long, value_parser = vmerge::memory::parse_size)]
     memory_limit: Option<u64>,
+    #[command(flatten)]
+    preview: PreviewArg,
     #[command(flatten)]
     technique_options: TechniqueArgs,
 }
@@ -204,6 +223,8 @@ struct ContinueArgs {
     /// The memory the render may use, e.g. 8G (default: what the machine has available).
     #[arg(long, value_parser = vmerge::memory::parse_size)]
     memory_limit: Option<u64>,
+    #[command(flatten)]
+    preview: PreviewArg,
 }
 
 /// The techniques by name, with their descriptions in `--help`.
@@ -323,6 +344,7 @@ fn run(cli: Cli) -> Result<()> {
             traces,
             metric,
         } => Ok(tools::plot(&output, &inputs, traces, metric)?),
+        Command::View { files, address } => view(&files, address),
         Command::Batch(args) => batch(args),
     }
 }
@@ -396,7 +418,7 @@ fn render(args: RenderArgs) -> Result<()> {
         scene.lights.len()
     );
     let job = setup.job(&scene)?;
-    run_job(job, stop)
+    run_job(job, stop, args.preview.preview)
 }
 
 fn resume(args: ContinueArgs) -> Result<()> {
@@ -424,12 +446,27 @@ fn resume(args: ContinueArgs) -> Result<()> {
     if stop.iterations.is_none() && stop.time.is_none() {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
-    run_job(job, stop)
+    run_job(job, stop, args.preview.preview)
 }
 
 use vmerge::render::{RenderJob, StopAfter};
 
-fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
+fn view(files: &[PathBuf], address: SocketAddr) -> Result<()> {
+    let viewer = vmerge::preview::Viewer::load(files)?;
+    let server = viewer.serve(address)?;
+    let (stop, stopped) = std::sync::mpsc::channel();
+    ctrlc::set_handler(move || {
+        // The receiver lives until main returns.
+        let _ = stop.send(());
+    })
+    .context("installing the signal handler")?;
+    eprintln!("view at http://{}/ (Ctrl-C stops)", server.address());
+    // Either a signal, or the handler is gone: stop in both cases.
+    let _ = stopped.recv();
+    Ok(())
+}
+
+fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> Result<()> {
     let flag = vmerge::render::StopFlag::default();
     let handler_flag = flag.clone();
     ctrlc::set_handler(move || {
@@ -444,7 +481,16 @@ fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
         indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos} it {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
-    job.run(stop, &flag, |p| {
+    let mut preview = preview
+        .map(|address| vmerge::preview::LivePreview::start(address, &job, stop))
+        .transpose()?;
+    if let Some(p) = &preview {
+        eprintln!("preview at http://{}/", p.address());
+    }
+    let observer = preview
+        .as_mut()
+        .map(|p| p as &mut dyn vmerge::render::Observer);
+    job.run_observed(stop, &flag, observer, |p| {
         bar.set_position(p.iterations);
         let mut msg = format!(
             "{:.2} Msamples/s, {:.2} Mrays/s",
@@ -466,6 +512,8 @@ fn run_job(mut job: RenderJob, stop: StopAfter) -> Result<()> {
         }
         bar.set_message(msg);
     })?;
+    // The page stops with the render.
+    drop(preview);
     bar.finish();
     eprintln!(
         "wrote {} ({} iterations, {:.1} s{})",

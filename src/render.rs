@@ -153,6 +153,12 @@ fn record_error(
 /// Set by a signal handler (or a test) to stop the render after the current iteration.
 pub type StopFlag = Arc<AtomicBool>;
 
+/// Watches a render (the live preview): told after every iteration, on the render's thread
+/// while the workers wait, so it must return quickly.
+pub trait Observer {
+    fn after_iteration(&mut self, film: &Film, metadata: &Metadata, progress: &Progress);
+}
+
 impl RenderJob<'_> {
     /// Runs iterations until `stop` says so or `stop_flag` is raised, writing a snapshot every
     /// `snapshot_every` and the final image at the end.
@@ -160,6 +166,17 @@ impl RenderJob<'_> {
         &mut self,
         stop: StopAfter,
         stop_flag: &StopFlag,
+        on_progress: impl FnMut(&Progress),
+    ) -> Result<(), RenderError> {
+        self.run_observed(stop, stop_flag, None, on_progress)
+    }
+
+    /// [`run`](Self::run), telling `observer` after every iteration.
+    pub fn run_observed(
+        &mut self,
+        stop: StopAfter,
+        stop_flag: &StopFlag,
+        mut observer: Option<&mut dyn Observer>,
         mut on_progress: impl FnMut(&Progress),
     ) -> Result<(), RenderError> {
         if stop.iterations.is_none() && stop.time.is_none() {
@@ -230,6 +247,9 @@ impl RenderJob<'_> {
                 upg,
             };
             on_progress(&now);
+            if let Some(observer) = observer.as_deref_mut() {
+                observer.after_iteration(&self.film, &self.metadata, &now);
+            }
             let statistics = |progress: &Progress| {
                 let mut all = integrator.statistics();
                 all.extend(progress.upg_statistics().unwrap_or_default());

@@ -333,8 +333,11 @@ fn check_in_chromium(report: &Path) {
     let index = report.join("index.html");
     let url = format!("file://{}", index.display());
     let profile = tempfile::tempdir().unwrap();
+    // Bounded, so that a Chromium that hangs fails the test (exit status 124) instead of
+    // holding up the suite; `timeout` ends its whole process group.
     let chromium = |extra: &[&str]| {
-        Command::new("chromium")
+        Command::new("timeout")
+            .args(["--kill-after=5", "120", "chromium"])
             .args([
                 "--headless",
                 "--no-sandbox",
@@ -360,6 +363,7 @@ fn check_in_chromium(report: &Path) {
     assert!(coloured > 20_000, "only {coloured} coloured pixels");
 
     let dom = chromium(&["--dump-dom"]);
+    assert!(dom.status.success(), "chromium --dump-dom: {}", dom.status);
     let dom = String::from_utf8(dom.stdout).unwrap();
     let images = attribute_values(&dom, "src");
     // Per view: the reference and each technique's best cell, the radius chart, a

@@ -89,6 +89,11 @@ impl ErrorTracker {
         Ok(ErrorTracker { reference, traces })
     }
 
+    /// The image errors are measured against.
+    pub fn reference(&self) -> &Image {
+        &self.reference
+    }
+
     /// The errors of `mean` (the render's mean image, row-major) after `seconds` and
     /// `iterations`.
     pub fn measure(&self, mean: &[Rgb], seconds: f64, iterations: u64) -> ErrorSample {
