@@ -110,7 +110,18 @@ pub struct LightChunk {
     pub stats: IterationStats,
 }
 
+impl LightChunk {
+    /// Empties the chunk for the next iteration, keeping its storage.
+    pub fn clear(&mut self) {
+        self.vertices.clear();
+        self.ends.clear();
+        self.splats.clear();
+        self.stats = IterationStats::default();
+    }
+}
+
 /// The light sub-paths of one iteration: every stored vertex, path after path.
+#[derive(Default)]
 pub struct LightPaths {
     pub vertices: Vec<LightVertex>,
     /// Where each path's vertices begin, and one past the last path's.
@@ -118,29 +129,23 @@ pub struct LightPaths {
 }
 
 impl LightPaths {
-    /// Concatenates the chunks in order (so the result does not depend on the threads), adding
-    /// their camera splats to `frame` and their counters to `stats`.
-    pub fn concatenate(
-        chunks: Vec<LightChunk>,
-        frame: &mut [Rgb],
-        stats: &mut IterationStats,
-    ) -> Self {
-        let mut vertices = Vec::new();
-        let mut path_ends = Vec::with_capacity(frame.len() + 1);
-        path_ends.push(0usize);
+    /// Replaces the paths by the chunks' in order (so the result does not depend on the
+    /// threads), adding their camera splats to `frame` and their counters to `stats`. The
+    /// storage is kept from one iteration to the next.
+    pub fn refill(&mut self, chunks: &[LightChunk], frame: &mut [Rgb], stats: &mut IterationStats) {
+        self.vertices.clear();
+        self.path_ends.clear();
+        self.path_ends.push(0);
         for chunk in chunks {
-            let base = vertices.len();
-            path_ends.extend(chunk.ends.iter().map(|&e| base + e as usize));
-            vertices.extend(chunk.vertices);
-            for (pixel, value) in chunk.splats {
+            let base = self.vertices.len();
+            self.path_ends
+                .extend(chunk.ends.iter().map(|&e| base + e as usize));
+            self.vertices.extend_from_slice(&chunk.vertices);
+            for &(pixel, value) in &chunk.splats {
                 add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
             }
             stats.rays += chunk.stats.rays;
             stats.dropped_samples += chunk.stats.dropped_samples;
-        }
-        LightPaths {
-            vertices,
-            path_ends,
         }
     }
 
