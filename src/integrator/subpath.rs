@@ -37,6 +37,27 @@ pub struct LightVertex {
     pub after_surface: bool,
 }
 
+/// What a density-estimate merge reads of a light vertex: a copy, half the size, stored in the
+/// hash grid's order so the merge loop streams through it.
+#[derive(Clone, Copy, Debug)]
+pub struct MergeVertex {
+    pub wo: Vec3,
+    pub throughput: Rgb,
+    pub path_length: u32,
+    pub mis: VcmVertex,
+}
+
+impl From<&LightVertex> for MergeVertex {
+    fn from(v: &LightVertex) -> Self {
+        MergeVertex {
+            wo: v.wo,
+            throughput: v.throughput,
+            path_length: v.path_length,
+            mis: v.mis,
+        }
+    }
+}
+
 impl LightVertex {
     /// The vertex's BSDF, as the light sub-path scattered there.
     pub fn bsdf<'s>(&self, scene: &'s Scene) -> Option<Bsdf<'s>> {

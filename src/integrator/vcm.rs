@@ -23,7 +23,7 @@
 use super::connection::{Connection, LightSample};
 use super::density::DensityMap;
 use super::mis::{ConnectionPdfs, Gather, Neighbour, Power, VcmWeights, VmHere, NO_DENSITY};
-use super::subpath::{EyeVertex, LightChunk, LightPaths, LightVertex, SubPath};
+use super::subpath::{EyeVertex, LightChunk, LightPaths, LightVertex, MergeVertex, SubPath};
 use super::upg::acceptance::{Estimator, PacketWidth};
 use super::upg::merge::{Gathered, Tentative, UpgMerges};
 use super::upg::{Deferred, UpgCounters};
@@ -99,6 +99,8 @@ struct Buffers {
     light: LightPaths,
     /// The stored light vertices' positions: the grid's and the density map's input.
     positions: Vec<Vec3>,
+    /// The light vertices as a density-estimate merge reads them, in the grid's order.
+    merge_vertices: Vec<MergeVertex>,
 }
 
 /// What the eye sub-paths of one iteration share.
@@ -107,6 +109,7 @@ struct EyePass<'i> {
     iteration: u64,
     light: &'i LightPaths,
     grid: Option<&'i HashGrid>,
+    merge_vertices: &'i [MergeVertex],
 }
 
 pub struct VertexCm<'a> {
@@ -611,12 +614,12 @@ impl<'a> VertexCm<'a> {
         bsdf: &Bsdf,
         hit: &SurfaceHit,
         grid: &HashGrid,
-        vertices: &[LightVertex],
+        vertices: &[MergeVertex],
     ) -> Rgb {
         let max_length = self.ctx.max_path_length();
         let mut sum = Rgb::BLACK;
-        grid.query(hit.position, |i, _| {
-            let lv = &vertices[i];
+        grid.query_slots(hit.position, |slot, _| {
+            let lv = &vertices[slot];
             let segments = lv.path_length.saturating_add(state.path_length);
             if segments > max_length || self.too_short(segments) {
                 return;
@@ -713,7 +716,7 @@ impl<'a> VertexCm<'a> {
                 match (gathered, self.modes.gather) {
                     (Some(gathered), Gather::Density) => {
                         let merged =
-                            self.merge(w, &state, &bsdf, &hit, gathered.grid, gathered.vertices);
+                            self.merge(w, &state, &bsdf, &hit, gathered.grid, pass.merge_vertices);
                         color += state.throughput * merged * w.vm_normalization;
                         if self.modes.ppm {
                             break;
@@ -767,6 +770,7 @@ impl Integrator for VertexCm<'_> {
             chunks,
             light,
             positions,
+            merge_vertices,
         } = &mut buffers;
         light.refill(chunks, frame, &mut stats);
         self.stored_vertices = light.vertices.len();
@@ -775,12 +779,22 @@ impl Integrator for VertexCm<'_> {
             positions.extend(light.vertices.iter().map(|v| v.position));
         }
         let grid = self.modes.vm.then(|| HashGrid::build(positions, w.radius));
+        merge_vertices.clear();
+        if let (Some(grid), Gather::Density) = (&grid, self.modes.gather) {
+            let vertices = &light.vertices;
+            merge_vertices.par_extend(
+                grid.indices()
+                    .par_iter()
+                    .map(|&i| MergeVertex::from(&vertices[i as usize])),
+            );
+        }
         // Eye pass: one sub-path per pixel, each connecting to its own light sub-path.
         let pass = EyePass {
             w,
             iteration,
             light,
             grid: grid.as_ref(),
+            merge_vertices,
         };
         let eye_stats = frame
             .par_iter_mut()
