@@ -11,6 +11,7 @@ use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::scene::{Scene, SurfaceHit};
 use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 
 /// A stored light sub-path vertex: everything a connection or a merge needs.
 #[derive(Clone, Copy, Debug)]
@@ -154,20 +155,36 @@ impl LightPaths {
     /// threads), adding their camera splats to `frame` and their counters to `stats`. The
     /// storage is kept from one iteration to the next.
     pub fn refill(&mut self, chunks: &[LightChunk], frame: &mut [Rgb], stats: &mut IterationStats) {
-        self.vertices.clear();
         self.path_ends.clear();
         self.path_ends.push(0);
+        let mut total = 0;
         for chunk in chunks {
-            let base = self.vertices.len();
             self.path_ends
-                .extend(chunk.ends.iter().map(|&e| base + e as usize));
-            self.vertices.extend_from_slice(&chunk.vertices);
+                .extend(chunk.ends.iter().map(|&e| total + e as usize));
+            total += chunk.vertices.len();
             for &(pixel, value) in &chunk.splats {
                 add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
             }
             stats.rays += chunk.stats.rays;
             stats.dropped_samples += chunk.stats.dropped_samples;
         }
+        // The copy runs on every thread, into storage of last iteration's length resized
+        // (the filler is overwritten): a serial copy would hold up the other threads.
+        match chunks.iter().find_map(|c| c.vertices.first()) {
+            Some(&filler) => self.vertices.resize(total, filler),
+            None => self.vertices.clear(),
+        }
+        let mut rest = self.vertices.as_mut_slice();
+        let mut targets = Vec::with_capacity(chunks.len());
+        for chunk in chunks {
+            let (target, tail) = rest.split_at_mut(chunk.vertices.len());
+            targets.push(target);
+            rest = tail;
+        }
+        targets
+            .into_par_iter()
+            .zip(chunks)
+            .for_each(|(target, chunk)| target.copy_from_slice(&chunk.vertices));
     }
 
     /// The light sub-path the eye sub-path of `pixel` connects to: the one traced for it when

@@ -776,7 +776,7 @@ impl Integrator for VertexCm<'_> {
         self.stored_vertices = light.vertices.len();
         positions.clear();
         if self.modes.vm {
-            positions.extend(light.vertices.iter().map(|v| v.position));
+            positions.par_extend(light.vertices.par_iter().map(|v| v.position));
         }
         let grid = self.modes.vm.then(|| HashGrid::build(positions, w.radius));
         merge_vertices.clear();
