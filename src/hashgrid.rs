@@ -124,10 +124,24 @@ impl HashGrid {
         self.indices.is_empty()
     }
 
+    /// The grid's order: for each slot, the index of its point in the `points` the grid was
+    /// built from. Data a query's caller reads per point, laid out in this order and read by
+    /// [`Self::query_slots`], streams through the cache instead of being fetched at random.
+    pub fn indices(&self) -> &[u32] {
+        &self.indices
+    }
+
     /// Calls `visit(index, distance_squared)` for every point within the radius of `q`
     /// (distance <= radius), with `index` into the `points` the grid was built from.
     #[inline]
     pub fn query(&self, q: Vec3, mut visit: impl FnMut(usize, f32)) {
+        self.query_slots(q, |slot, d2| visit(self.indices[slot] as usize, d2));
+    }
+
+    /// [`Self::query`] that names each point by its slot in [`Self::indices`], in the same
+    /// order.
+    #[inline]
+    pub fn query_slots(&self, q: Vec3, mut visit: impl FnMut(usize, f32)) {
         let centre = cell_key(q, self.inv_cell);
         // All lookups first: their cache misses, and those of the ranges' first points, overlap
         // instead of each waiting for the previous range's scan.
@@ -162,13 +176,13 @@ impl HashGrid {
         let xs = &self.xs[range.clone()];
         let ys = &self.ys[range.clone()];
         let zs = &self.zs[range.clone()];
-        let indices = &self.indices[range];
-        for (((xs, ys), zs), indices) in xs
+        for (block, ((xs, ys), zs)) in xs
             .chunks(BLOCK)
             .zip(ys.chunks(BLOCK))
             .zip(zs.chunks(BLOCK))
-            .zip(indices.chunks(BLOCK))
+            .enumerate()
         {
+            let first = range.start + block * BLOCK;
             let mut d2 = [0.0f32; BLOCK];
             for (((d2, &x), &y), &z) in d2.iter_mut().zip(xs).zip(ys).zip(zs) {
                 let (dx, dy, dz) = (x - q.x, y - q.y, z - q.z);
@@ -181,7 +195,7 @@ impl HashGrid {
             while inside != 0 {
                 let j = inside.trailing_zeros() as usize;
                 inside &= inside - 1;
-                visit(indices[j] as usize, d2[j]);
+                visit(first + j, d2[j]);
             }
         }
     }

@@ -76,8 +76,9 @@ pub fn estimate(
     threads: usize,
 ) -> MemoryNeed {
     let film = pixels.saturating_mul(FILM_BYTES_PER_PIXEL);
-    // The merging techniques keep one light sub-path per pixel, its vertices stored twice
-    // while the threads' chunks are concatenated, plus the hash grid's 20 bytes per vertex.
+    // The merging techniques keep one light sub-path per pixel, its vertices stored twice (the
+    // light pass's chunks and their concatenation, both kept from one iteration to the next),
+    // plus the hash grid's 20 bytes per vertex.
     let light_vertices = if technique.merges() {
         let per_path = (max_path_length as u64).min(roulette as u64 + VERTICES_AFTER_ROULETTE);
         let per_vertex = 2 * std::mem::size_of::<LightVertex>() as u64 + 20;

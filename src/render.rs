@@ -9,6 +9,7 @@ use crate::integrator::{self, RenderContext};
 use crate::memory::MemoryError;
 use crate::options::{OptionError, OptionName, RenderOptions};
 use crate::scene::{Camera, LoadOptions, Scene, SceneError};
+use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -75,7 +76,7 @@ pub fn render_iterations(
     });
     let mut frame = vec![Rgb::BLACK; film.pixel_count()];
     for iteration in 0..iterations {
-        frame.fill(Rgb::BLACK);
+        frame.par_iter_mut().for_each(|p| *p = Rgb::BLACK);
         integrator.render_iteration(iteration, &mut frame);
         film.add_iteration(&frame);
     }
@@ -218,7 +219,7 @@ impl RenderJob<'_> {
             if done_iterations || done_time || stop_flag.load(Ordering::Relaxed) {
                 break;
             }
-            frame.fill(Rgb::BLACK);
+            frame.par_iter_mut().for_each(|p| *p = Rgb::BLACK);
             let stats = integrator.render_iteration(self.film.iterations, &mut frame);
             self.film.add_iteration(&frame);
             iterations_here += 1;

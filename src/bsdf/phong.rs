@@ -39,7 +39,7 @@ impl Phong {
         let cos_alpha = reflect_local(wo).dot(wi).max(0.0);
         let lobe = cos_alpha.powf(self.exponent);
         let f = self.kd * FRAC_1_PI + self.ks * ((self.exponent + 2.0) * 0.5 * FRAC_1_PI * lobe);
-        let specular_pdf = power_cosine_pdf(cos_alpha, self.exponent);
+        let specular_pdf = power_cosine_pdf(cos_alpha, lobe, self.exponent);
         let pd = self.diffuse_probability;
         BsdfEval {
             f,

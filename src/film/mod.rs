@@ -2,6 +2,7 @@
 //! and tone-mapped PNG previews.
 
 use crate::color::Rgb;
+use rayon::prelude::*;
 
 mod atomic;
 pub mod exr;
@@ -41,11 +42,12 @@ impl Film {
     /// Adds one iteration's estimate (one value per pixel).
     pub fn add_iteration(&mut self, frame: &[Rgb]) {
         debug_assert_eq!(frame.len(), self.sum.len());
-        for (s, c) in self.sum.iter_mut().zip(frame) {
+        // On every thread: a serial pass between iterations would hold up the others.
+        self.sum.par_iter_mut().zip(frame).for_each(|(s, c)| {
             s[0] += c.r as f64;
             s[1] += c.g as f64;
             s[2] += c.b as f64;
-        }
+        });
         self.iterations += 1;
     }
 

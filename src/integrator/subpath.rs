@@ -11,6 +11,7 @@ use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::scene::{Scene, SurfaceHit};
 use glam::{Vec2, Vec3};
+use rayon::prelude::*;
 
 /// A stored light sub-path vertex: everything a connection or a merge needs.
 #[derive(Clone, Copy, Debug)]
@@ -35,6 +36,27 @@ pub struct LightVertex {
     /// The previous vertex of the sub-path is a non-delta surface vertex, stored just before
     /// this one.
     pub after_surface: bool,
+}
+
+/// What a density-estimate merge reads of a light vertex: a copy, half the size, stored in the
+/// hash grid's order so the merge loop streams through it.
+#[derive(Clone, Copy, Debug)]
+pub struct MergeVertex {
+    pub wo: Vec3,
+    pub throughput: Rgb,
+    pub path_length: u32,
+    pub mis: VcmVertex,
+}
+
+impl From<&LightVertex> for MergeVertex {
+    fn from(v: &LightVertex) -> Self {
+        MergeVertex {
+            wo: v.wo,
+            throughput: v.throughput,
+            path_length: v.path_length,
+            mis: v.mis,
+        }
+    }
 }
 
 impl LightVertex {
@@ -110,7 +132,18 @@ pub struct LightChunk {
     pub stats: IterationStats,
 }
 
+impl LightChunk {
+    /// Empties the chunk for the next iteration, keeping its storage.
+    pub fn clear(&mut self) {
+        self.vertices.clear();
+        self.ends.clear();
+        self.splats.clear();
+        self.stats = IterationStats::default();
+    }
+}
+
 /// The light sub-paths of one iteration: every stored vertex, path after path.
+#[derive(Default)]
 pub struct LightPaths {
     pub vertices: Vec<LightVertex>,
     /// Where each path's vertices begin, and one past the last path's.
@@ -118,30 +151,40 @@ pub struct LightPaths {
 }
 
 impl LightPaths {
-    /// Concatenates the chunks in order (so the result does not depend on the threads), adding
-    /// their camera splats to `frame` and their counters to `stats`.
-    pub fn concatenate(
-        chunks: Vec<LightChunk>,
-        frame: &mut [Rgb],
-        stats: &mut IterationStats,
-    ) -> Self {
-        let mut vertices = Vec::new();
-        let mut path_ends = Vec::with_capacity(frame.len() + 1);
-        path_ends.push(0usize);
+    /// Replaces the paths by the chunks' in order (so the result does not depend on the
+    /// threads), adding their camera splats to `frame` and their counters to `stats`. The
+    /// storage is kept from one iteration to the next.
+    pub fn refill(&mut self, chunks: &[LightChunk], frame: &mut [Rgb], stats: &mut IterationStats) {
+        self.path_ends.clear();
+        self.path_ends.push(0);
+        let mut total = 0;
         for chunk in chunks {
-            let base = vertices.len();
-            path_ends.extend(chunk.ends.iter().map(|&e| base + e as usize));
-            vertices.extend(chunk.vertices);
-            for (pixel, value) in chunk.splats {
+            self.path_ends
+                .extend(chunk.ends.iter().map(|&e| total + e as usize));
+            total += chunk.vertices.len();
+            for &(pixel, value) in &chunk.splats {
                 add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
             }
             stats.rays += chunk.stats.rays;
             stats.dropped_samples += chunk.stats.dropped_samples;
         }
-        LightPaths {
-            vertices,
-            path_ends,
+        // The copy runs on every thread, into storage of last iteration's length resized
+        // (the filler is overwritten): a serial copy would hold up the other threads.
+        match chunks.iter().find_map(|c| c.vertices.first()) {
+            Some(&filler) => self.vertices.resize(total, filler),
+            None => self.vertices.clear(),
         }
+        let mut rest = self.vertices.as_mut_slice();
+        let mut targets = Vec::with_capacity(chunks.len());
+        for chunk in chunks {
+            let (target, tail) = rest.split_at_mut(chunk.vertices.len());
+            targets.push(target);
+            rest = tail;
+        }
+        targets
+            .into_par_iter()
+            .zip(chunks)
+            .for_each(|(target, chunk)| target.copy_from_slice(&chunk.vertices));
     }
 
     /// The light sub-path the eye sub-path of `pixel` connects to: the one traced for it when

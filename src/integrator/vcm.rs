@@ -23,7 +23,7 @@
 use super::connection::{Connection, LightSample};
 use super::density::DensityMap;
 use super::mis::{ConnectionPdfs, Gather, Neighbour, Power, VcmWeights, VmHere, NO_DENSITY};
-use super::subpath::{EyeVertex, LightChunk, LightPaths, LightVertex, SubPath};
+use super::subpath::{EyeVertex, LightChunk, LightPaths, LightVertex, MergeVertex, SubPath};
 use super::upg::acceptance::{Estimator, PacketWidth};
 use super::upg::merge::{Gathered, Tentative, UpgMerges};
 use super::upg::{Deferred, UpgCounters};
@@ -92,12 +92,24 @@ impl Modes {
     }
 }
 
+/// Storage kept from one iteration to the next, so the steady state allocates nothing.
+#[derive(Default)]
+struct Buffers {
+    chunks: Vec<LightChunk>,
+    light: LightPaths,
+    /// The stored light vertices' positions: the grid's and the density map's input.
+    positions: Vec<Vec3>,
+    /// The light vertices as a density-estimate merge reads them, in the grid's order.
+    merge_vertices: Vec<MergeVertex>,
+}
+
 /// What the eye sub-paths of one iteration share.
 struct EyePass<'i> {
     w: VcmWeights,
     iteration: u64,
     light: &'i LightPaths,
     grid: Option<&'i HashGrid>,
+    merge_vertices: &'i [MergeVertex],
 }
 
 pub struct VertexCm<'a> {
@@ -113,6 +125,7 @@ pub struct VertexCm<'a> {
     stored_vertices: usize,
     /// UPG's counters over all iterations so far.
     upg: UpgCounters,
+    buffers: Buffers,
 }
 
 impl<'a> VertexCm<'a> {
@@ -149,6 +162,7 @@ impl<'a> VertexCm<'a> {
             ctx,
             stored_vertices: 0,
             upg: UpgCounters::default(),
+            buffers: Buffers::default(),
         }
     }
 
@@ -363,25 +377,29 @@ impl<'a> VertexCm<'a> {
         }
     }
 
-    /// The light sub-paths of one iteration: fixed chunks of paths, in order.
-    fn light_pass(&self, w: &VcmWeights, iteration: u64, paths: usize) -> Vec<LightChunk> {
-        (0..paths)
-            .into_par_iter()
-            .step_by(LIGHT_CHUNK)
-            .map(|start| {
-                let mut chunk = LightChunk::default();
-                for index in start..(start + LIGHT_CHUNK).min(paths) {
-                    self.trace_light_path(w, iteration, index, &mut chunk);
-                    chunk.ends.push(chunk.vertices.len() as u32);
-                }
-                chunk
-            })
-            .collect()
+    /// Traces the light sub-paths of one iteration into `chunks`: fixed chunks of paths, in
+    /// order.
+    fn light_pass(
+        &self,
+        w: &VcmWeights,
+        iteration: u64,
+        paths: usize,
+        chunks: &mut Vec<LightChunk>,
+    ) {
+        chunks.resize_with(paths.div_ceil(LIGHT_CHUNK), LightChunk::default);
+        chunks.par_iter_mut().enumerate().for_each(|(c, chunk)| {
+            chunk.clear();
+            let start = c * LIGHT_CHUNK;
+            for index in start..(start + LIGHT_CHUNK).min(paths) {
+                self.trace_light_path(w, iteration, index, chunk);
+                chunk.ends.push(chunk.vertices.len() as u32);
+            }
+        });
     }
 
     /// A continued render starts with an empty density map: the light passes of the
     /// iterations that filled it are traced again (their vertices depend only on the seed).
-    fn rebuild_density_map(&mut self, iteration: u64, paths: usize) {
+    fn rebuild_density_map(&mut self, iteration: u64, paths: usize, buffers: &mut Buffers) {
         loop {
             let next = match &self.density {
                 Some(map) if map.is_filling() && u64::from(map.iterations()) < iteration => {
@@ -390,13 +408,16 @@ impl<'a> VertexCm<'a> {
                 _ => return,
             };
             let w = self.weights(next);
-            let positions: Vec<Vec3> = self
-                .light_pass(&w, next, paths)
-                .iter()
-                .flat_map(|chunk| chunk.vertices.iter().map(|v| v.position))
-                .collect();
+            self.light_pass(&w, next, paths, &mut buffers.chunks);
+            buffers.positions.clear();
+            buffers.positions.extend(
+                buffers
+                    .chunks
+                    .iter()
+                    .flat_map(|chunk| chunk.vertices.iter().map(|v| v.position)),
+            );
             if let Some(map) = &mut self.density {
-                map.insert(&positions);
+                map.insert(&buffers.positions);
             }
         }
     }
@@ -593,12 +614,12 @@ impl<'a> VertexCm<'a> {
         bsdf: &Bsdf,
         hit: &SurfaceHit,
         grid: &HashGrid,
-        vertices: &[LightVertex],
+        vertices: &[MergeVertex],
     ) -> Rgb {
         let max_length = self.ctx.max_path_length();
         let mut sum = Rgb::BLACK;
-        grid.query(hit.position, |i, _| {
-            let lv = &vertices[i];
+        grid.query_slots(hit.position, |slot, _| {
+            let lv = &vertices[slot];
             let segments = lv.path_length.saturating_add(state.path_length);
             if segments > max_length || self.too_short(segments) {
                 return;
@@ -695,7 +716,7 @@ impl<'a> VertexCm<'a> {
                 match (gathered, self.modes.gather) {
                     (Some(gathered), Gather::Density) => {
                         let merged =
-                            self.merge(w, &state, &bsdf, &hit, gathered.grid, gathered.vertices);
+                            self.merge(w, &state, &bsdf, &hit, gathered.grid, pass.merge_vertices);
                         color += state.throughput * merged * w.vm_normalization;
                         if self.modes.ppm {
                             break;
@@ -739,26 +760,41 @@ impl<'a> VertexCm<'a> {
 
 impl Integrator for VertexCm<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
-        self.rebuild_density_map(iteration, frame.len());
+        let mut buffers = std::mem::take(&mut self.buffers);
+        self.rebuild_density_map(iteration, frame.len(), &mut buffers);
         let w = self.weights(iteration);
         let paths = self.light_paths();
-        let chunks = self.light_pass(&w, iteration, paths);
+        self.light_pass(&w, iteration, paths, &mut buffers.chunks);
         let mut stats = IterationStats::default();
-        let light = LightPaths::concatenate(chunks, frame, &mut stats);
+        let Buffers {
+            chunks,
+            light,
+            positions,
+            merge_vertices,
+        } = &mut buffers;
+        light.refill(chunks, frame, &mut stats);
         self.stored_vertices = light.vertices.len();
-        // The grid's and the density map's input.
-        let positions: Vec<Vec3> = if self.modes.vm {
-            light.vertices.iter().map(|v| v.position).collect()
-        } else {
-            Vec::new()
-        };
-        let grid = self.modes.vm.then(|| HashGrid::build(&positions, w.radius));
+        positions.clear();
+        if self.modes.vm {
+            positions.par_extend(light.vertices.par_iter().map(|v| v.position));
+        }
+        let grid = self.modes.vm.then(|| HashGrid::build(positions, w.radius));
+        merge_vertices.clear();
+        if let (Some(grid), Gather::Density) = (&grid, self.modes.gather) {
+            let vertices = &light.vertices;
+            merge_vertices.par_extend(
+                grid.indices()
+                    .par_iter()
+                    .map(|&i| MergeVertex::from(&vertices[i as usize])),
+            );
+        }
         // Eye pass: one sub-path per pixel, each connecting to its own light sub-path.
         let pass = EyePass {
             w,
             iteration,
-            light: &light,
+            light,
             grid: grid.as_ref(),
+            merge_vertices,
         };
         let eye_stats = frame
             .par_iter_mut()
@@ -775,9 +811,10 @@ impl Integrator for VertexCm<'_> {
         // Filled after the eye pass, so every technique of this iteration saw the same map.
         if let Some(map) = &mut self.density {
             if map.is_filling() && u64::from(map.iterations()) == iteration {
-                map.insert(&positions);
+                map.insert(positions);
             }
         }
+        self.buffers = buffers;
         stats
     }
 

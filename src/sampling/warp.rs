@@ -24,11 +24,13 @@ pub fn power_cosine(u: [f32; 2], exponent: f32) -> Vec3 {
     Vec3::new(sin_theta * phi.cos(), sin_theta * phi.sin(), cos_theta)
 }
 
-pub fn power_cosine_pdf(cos_theta: f32, exponent: f32) -> f32 {
+/// The pdf of [`power_cosine`] at `cos_theta`, given `lobe` = cos_theta^exponent (which its
+/// caller has already computed for the BSDF value: one `powf` serves both).
+pub fn power_cosine_pdf(cos_theta: f32, lobe: f32, exponent: f32) -> f32 {
     if cos_theta <= 0.0 {
         return 0.0;
     }
-    (exponent + 1.0) * 0.5 * FRAC_1_PI * cos_theta.powf(exponent)
+    (exponent + 1.0) * 0.5 * FRAC_1_PI * lobe
 }
 
 /// Uniform on the unit sphere; pdf = 1 / (4 pi).

@@ -353,7 +353,8 @@ impl Scene {
         &self.materials[index as usize]
     }
 
-    /// The default merge radius: 0.003 x the bounding-sphere diameter (SmallVCM's choice).
+    /// The default merge radius: 0.003 x the bounding-sphere diameter, twice SmallVCM's 0.003 x
+    /// the scene-sphere radius (pass `--radius` to match SmallVCM).
     pub fn default_radius(&self) -> f32 {
         self.defaults
             .radius
