@@ -140,6 +140,7 @@ impl DensityMap {
             }
         }
     }
+
     /// 1 / k(x) for merges of radius `radius` among `light_paths` light sub-paths, or `None`
     /// while the map is empty.
     pub fn inv_expected_count(&self, x: Vec3, radius: f32, light_paths: f32) -> Option<f32> {
