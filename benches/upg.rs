@@ -12,14 +12,16 @@
 //! predecessors). The number K of merges per gather grows with the light paths per iteration
 //! (the pixel count) times pi r^2: about 1.5 at 256x256 and 15 at 768x768 on `cornell-glossy`
 //! at its default radius. After criterion's figures a table compares both widths measured
-//! alternately in one run, for K = 1, 4 and 16, and the tracing alone.
+//! alternately in one run (thread CPU time: the machine is shared), for K = 1, 4 and 16, and
+//! the tracing alone.
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
 use std::cell::RefCell;
 use std::hint::black_box;
 use std::path::Path;
-use std::time::{Duration, Instant};
+use cpu_time::ThreadTime;
+use std::time::Duration;
 use vmerge::accel::{AccelKind, Ray, PACKET};
 use vmerge::bsdf::{Bsdf, TransportMode};
 use vmerge::frame::Frame;
@@ -252,8 +254,12 @@ fn estimator(packet: PacketWidth) -> Estimator {
 /// The scene as a tracer that also keeps every packet it traces, to replay the tracing alone.
 struct Recording<'a> {
     scene: &'a Scene,
-    packets: RefCell<Vec<([Ray; PACKET], u8)>>,
+    packets: RefCell<Vec<Recorded>>,
 }
+
+/// A packet as the estimator traced it: its rays, where each comes within reach of its
+/// r-sphere, and its active lanes.
+type Recorded = ([Ray; PACKET], [f32; PACKET], u8);
 
 impl TentativeTracer for Recording<'_> {
     fn closest(&self, ray: &Ray) -> Option<f32> {
@@ -261,18 +267,29 @@ impl TentativeTracer for Recording<'_> {
     }
 
     fn closest8(&self, rays: &[Ray; PACKET], active: u8) -> [Option<f32>; PACKET] {
-        self.packets.borrow_mut().push((*rays, active));
         self.scene.closest8(rays, active)
+    }
+
+    fn reaching8(
+        &self,
+        rays: &[Ray; PACKET],
+        approach: &[f32; PACKET],
+        active: u8,
+    ) -> [Option<f32>; PACKET] {
+        self.packets.borrow_mut().push((*rays, *approach, active));
+        self.scene.reaching8(rays, approach, active)
     }
 }
 
-/// Nanoseconds per ray of the recorded packets' rays traced one by one and as the packets.
-fn tracing_alone(scene: &Scene, packets: &[([Ray; PACKET], u8)]) -> (f64, f64) {
-    let rays: u32 = packets.iter().map(|(_, a)| a.count_ones()).sum();
-    let mut best = [f64::INFINITY; 2];
+/// CPU nanoseconds per ray of the recorded packets' rays traced one by one (closest hits),
+/// as packets of closest hits, and as the estimator traces them (any hit up to the sphere,
+/// then closest hits), best of 5. Thread CPU time: the machine is shared.
+fn tracing_alone(scene: &Scene, packets: &[Recorded]) -> [f64; 3] {
+    let rays: u32 = packets.iter().map(|(_, _, a)| a.count_ones()).sum();
+    let mut best = [f64::INFINITY; 3];
     for _ in 0..5 {
-        let start = Instant::now();
-        for (packet, active) in packets {
+        let start = ThreadTime::now();
+        for (packet, _, active) in packets {
             for (i, ray) in packet.iter().enumerate() {
                 if active & (1 << i) != 0 {
                     black_box(scene.closest(ray));
@@ -280,14 +297,18 @@ fn tracing_alone(scene: &Scene, packets: &[([Ray; PACKET], u8)]) -> (f64, f64) {
             }
         }
         best[0] = best[0].min(start.elapsed().as_secs_f64());
-        let start = Instant::now();
-        for (packet, active) in packets {
+        let start = ThreadTime::now();
+        for (packet, _, active) in packets {
             black_box(scene.closest8(packet, *active));
         }
         best[1] = best[1].min(start.elapsed().as_secs_f64());
+        let start = ThreadTime::now();
+        for (packet, approach, active) in packets {
+            black_box(scene.reaching8(packet, approach, *active));
+        }
+        best[2] = best[2].min(start.elapsed().as_secs_f64());
     }
-    let [one, eight] = best.map(|s| s * 1e9 / rays as f64);
-    (one, eight)
+    best.map(|s| s * 1e9 / rays.max(1) as f64)
 }
 
 /// One row of the final table: both widths on one kind and size of gather.
@@ -299,8 +320,9 @@ struct Row {
     trials_per_merge: f64,
     rays_per_merge: [f64; 2],
     capped: u64,
-    /// ns per ray of the packets' rays traced alone, one by one and as packets.
-    tracing: (f64, f64),
+    /// ns per ray of the packets' rays traced alone: one by one, as closest-hit packets, in
+    /// two phases.
+    tracing: [f64; 3],
 }
 
 /// Several passes per width, alternating; pass `p` draws the same random numbers at both
@@ -320,7 +342,7 @@ fn table_row(
         for k in 0..widths.len() {
             // Alternate which width goes first, so load from other processes weighs on both.
             let i = (k + pass as usize) % widths.len();
-            let start = Instant::now();
+            let start = ThreadTime::now();
             let t = run(scene, scene, gathers, radius, &estimator(widths[i]), pass);
             time[i] += start.elapsed();
             totals[i].merges += t.merges;
@@ -406,7 +428,7 @@ fn benches(c: &mut Criterion) {
         AccelKind::default_kind().name()
     );
     println!(
-        "{:15} {:10} {:>3} {:>10} {:>10} {:>7} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>6}",
+        "{:15} {:10} {:>3} {:>10} {:>10} {:>7} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>8} {:>6}",
         "scene",
         "gathers",
         "K",
@@ -418,12 +440,13 @@ fn benches(c: &mut Criterion) {
         "rays 8",
         "capped",
         "ns/ray 1",
-        "ns/ray 8",
-        "8 / 1"
+        "closest8",
+        "2-phase",
+        "1 / 2p"
     );
     for r in &rows {
         println!(
-            "{:15} {:10} {:>3} {:>10.0} {:>10.0} {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>6} {:>8.1} {:>8.1} {:>6.2}",
+            "{:15} {:10} {:>3} {:>10.0} {:>10.0} {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>6} {:>8.1} {:>8.1} {:>8.1} {:>6.2}",
             r.scene,
             r.side.name(),
             r.size,
@@ -434,11 +457,13 @@ fn benches(c: &mut Criterion) {
             r.rays_per_merge[0],
             r.rays_per_merge[1],
             r.capped,
-            r.tracing.0,
-            r.tracing.1,
-            r.tracing.0 / r.tracing.1
+            r.tracing[0],
+            r.tracing[1],
+            r.tracing[2],
+            r.tracing[0] / r.tracing[2]
         );
     }
+    println!("(ns/ray: the packets' rays traced alone, CPU time; 0 where no gather made a packet)");
 }
 
 criterion_group! {

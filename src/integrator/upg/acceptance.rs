@@ -29,6 +29,12 @@ use thiserror::Error;
 /// worth its own sampler; the whole lobe is sampled instead.
 const WHOLE_LOBE_SHARE: f64 = 0.9;
 
+/// Open merges a packet needs: with fewer, the merges left go on with single rays.
+const PACKET_MERGES: usize = 4;
+
+/// Lanes of a packet one merge may take: its next trial, and one more in case that fails.
+const LANES_PER_MERGE: usize = 2;
+
 /// Closest-hit distances for tentative rays: the scene in rendering, analytic geometry in tests.
 pub trait TentativeTracer {
     /// Distance `t` (in units of `ray.dir`) of the closest hit in `[ray.tmin, ray.tmax]`.
@@ -37,6 +43,54 @@ pub trait TentativeTracer {
     /// [`TentativeTracer::closest`] of up to 8 rays; bit `i` of `active` selects `rays[i]`,
     /// inactive lanes answer `None`.
     fn closest8(&self, rays: &[Ray; PACKET], active: u8) -> [Option<f32>; PACKET];
+
+    /// Whether anything at all (a delta surface too) is hit in `[ray.tmin, ray.tmax]`, for up
+    /// to 8 rays: bit `i` is set where active ray `i` hits. By default from
+    /// [`TentativeTracer::closest8`]; a tracer with an any-hit query answers it faster.
+    fn any8(&self, rays: &[Ray; PACKET], active: u8) -> u8 {
+        let hits = self.closest8(rays, active);
+        (0..PACKET)
+            .filter(|&i| hits[i].is_some())
+            .fold(0, |mask, i| mask | (1 << i))
+    }
+
+    /// What decides each tentative ray of a packet: `None` where ray `i` hits anything before
+    /// `approach[i]`, its [`TentativeTracer::closest8`] answer elsewhere. A trial whose ray is
+    /// blocked before its approach (where it comes within reach of the r-sphere,
+    /// [`AngularBound`] computes it; 0 for none) fails whatever its closest hit is, so a
+    /// packet's successes and failures are exactly those of single rays.
+    ///
+    /// Two queries: any hit up to each approach, then closest hits, for the rays left, from a
+    /// little before it. Nothing lies before that point, so the closest hit found is the whole
+    /// ray's. Any-hit queries stop at their first hit, and the closest-hit query sees only a
+    /// short segment around the sphere, so both cost less than closest hits of whole rays.
+    fn reaching8(
+        &self,
+        rays: &[Ray; PACKET],
+        approach: &[f32; PACKET],
+        active: u8,
+    ) -> [Option<f32>; PACKET] {
+        // The second query starts this fraction before the first one ends, so a hit where they
+        // meet is seen by one of them however each rounds the ends of its segment.
+        const OVERLAP: f32 = 1.0 / 1024.0;
+        let (mut near, mut far) = (*rays, *rays);
+        let mut probed = 0u8;
+        for lane in (0..PACKET).filter(|&lane| active & (1 << lane) != 0 && approach[lane] > 0.0) {
+            near[lane].tmax = approach[lane];
+            far[lane].tmin = approach[lane] * (1.0 - OVERLAP);
+            probed |= 1 << lane;
+        }
+        let blocked = if probed == 0 {
+            0
+        } else {
+            self.any8(&near, probed)
+        };
+        let left = active & !blocked;
+        if left == 0 {
+            return [None; PACKET];
+        }
+        self.closest8(&far, left)
+    }
 }
 
 impl TentativeTracer for Scene {
@@ -48,6 +102,10 @@ impl TentativeTracer for Scene {
         let mut hits = [None; PACKET];
         self.intersect8(rays, active, &mut hits);
         hits.map(|hit| hit.map(|hit| hit.t))
+    }
+
+    fn any8(&self, rays: &[Ray; PACKET], active: u8) -> u8 {
+        self.accel.occluded8(rays, active)
     }
 }
 
@@ -69,6 +127,10 @@ impl TentativeTracer for StoredVerticesOnly<'_> {
             hit.filter(|hit| !self.0.hits_delta_surface(hit))
                 .map(|hit| hit.t)
         })
+    }
+
+    fn any8(&self, rays: &[Ray; PACKET], active: u8) -> u8 {
+        self.0.accel.occluded8(rays, active)
     }
 }
 
@@ -428,6 +490,34 @@ impl<'a> AngularBound<'a> {
         })
     }
 
+    /// The approach of a trial's ray (see [`TentativeTracer::reaching8`]): the parameter where
+    /// it enters a sphere around the target a little larger than the r-sphere, 0 when it starts
+    /// inside that sphere. Every point before it lies farther from the target than r by far
+    /// more than [`AngularBound::accepts`] rounds (2^-8 r, plus 1e-5 of the coordinates'
+    /// magnitude: about 40 times f32's rounding of a hit point, and of how differently any-hit
+    /// and closest-hit tests may round the same `t`), so a hit before it is certainly a failure.
+    fn approach(&self, ray: &Ray) -> f32 {
+        let o = (ray.origin - self.target).as_dvec3();
+        let w = ray.dir.as_dvec3();
+        let magnitude = ray.origin.abs().max_element() as f64
+            + self.target.abs().max_element() as f64
+            + ray.tmax as f64 * ray.dir.abs().max_element() as f64;
+        let reach = self.radius as f64 * (1.0 + 1.0 / 256.0) + 1e-5 * magnitude;
+        let c = o.length_squared() - reach * reach;
+        if c <= 0.0 {
+            return 0.0;
+        }
+        let half_b = o.dot(w);
+        let disc = (half_b * half_b - w.length_squared() * c).max(0.0);
+        // The nearer root in its stable form c / q (the roots' product is c / a); q > 0 for a
+        // ray that heads into the sphere, as every traced trial's does.
+        let q = disc.sqrt() - half_b;
+        if q <= 0.0 {
+            return 0.0;
+        }
+        (c / q) as f32
+    }
+
     fn accepts(&self, ray: &Ray, t: Option<f32>) -> bool {
         t.is_some_and(|t| (ray.at(t) - self.target).length_squared() <= self.radius * self.radius)
     }
@@ -539,7 +629,7 @@ impl Estimator {
         match self.packet {
             PacketWidth::One => {
                 for i in reachable {
-                    let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i]);
+                    let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i], (0, 0));
                     done(i, finish(&bounds[i], first, rays));
                 }
             }
@@ -553,15 +643,16 @@ impl Estimator {
         }
     }
 
-    /// The index of the first success (or `None` when capped), and the rays traced.
+    /// The index of the first success (or `None` when capped), and the rays traced, going on
+    /// after `drawn` trials that traced `rays` rays and did not succeed.
     fn single<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
         bound: &AngularBound,
         rng: &mut Rng,
+        (drawn, mut rays): (u32, u32),
     ) -> (Option<u32>, u32) {
-        let mut rays = 0;
-        for n in 1..=self.max_trials {
+        for n in drawn + 1..=self.max_trials {
             if let Some(ray) = bound.trial(rng) {
                 rays += 1;
                 if bound.accepts(&ray, tracer.closest(&ray)) {
@@ -573,6 +664,11 @@ impl Estimator {
     }
 
     /// Packets of 8 lanes over the merges `open`; `done(i, first success, rays)` as each ends.
+    /// A packet takes the next trials of every open merge in turn, at most
+    /// [`LANES_PER_MERGE`] each: more would be mostly trials after a merge's first success,
+    /// which single rays never trace. With fewer than [`PACKET_MERGES`] merges open the lanes
+    /// would stay empty or hold such trials, and a packet costs several single rays, so the
+    /// merges left go on with single rays.
     fn packets<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
@@ -590,15 +686,16 @@ impl Estimator {
         }
         let mut progress = vec![Progress::default(); bounds.len()];
         let mut packet = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
+        let mut approach = [0.0f32; PACKET];
         // Which merge and which of its trials each lane holds.
         let mut lanes = [(0usize, 0u32); PACKET];
         let mut turn = 0;
-        while !open.is_empty() {
+        while open.len() >= PACKET_MERGES {
             let mut active = 0u8;
             let mut filled = 0;
-            // Sweep the open merges, one traced trial each per sweep, until the lanes are full
-            // or every open merge has drawn its cap.
-            while filled < PACKET {
+            // Sweep the open merges, one traced trial each per sweep, until the lanes are full,
+            // each merge has its share, or every open merge has drawn its cap.
+            for _ in 0..LANES_PER_MERGE {
                 let mut placed = false;
                 for k in 0..open.len() {
                     if filled == PACKET {
@@ -610,6 +707,7 @@ impl Estimator {
                         p.drawn += 1;
                         if let Some(ray) = bounds[i].trial(&mut rngs[i]) {
                             packet[filled] = ray;
+                            approach[filled] = bounds[i].approach(&ray);
                             lanes[filled] = (i, p.drawn);
                             active |= 1 << filled;
                             p.rays += 1;
@@ -619,13 +717,13 @@ impl Estimator {
                         }
                     }
                 }
-                if !placed {
+                if !placed || filled == PACKET {
                     break;
                 }
             }
             turn += 1;
             if active != 0 {
-                let hits = tracer.closest8(&packet, active);
+                let hits = tracer.reaching8(&packet, &approach, active);
                 for (lane, &(i, n)) in lanes.iter().enumerate().take(filled) {
                     let p = &mut progress[i];
                     // A merge's lanes hold its trials in order: the first success decides.
@@ -642,6 +740,11 @@ impl Estimator {
                 }
                 !ended
             });
+        }
+        for i in open {
+            let p = progress[i];
+            let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i], (p.drawn, p.rays));
+            done(i, first, rays);
         }
     }
 }
