@@ -29,12 +29,6 @@ use thiserror::Error;
 /// worth its own sampler; the whole lobe is sampled instead.
 const WHOLE_LOBE_SHARE: f64 = 0.9;
 
-/// Open merges a packet needs: with fewer, the merges left go on with single rays.
-const PACKET_MERGES: usize = 4;
-
-/// Lanes of a packet one merge may take: its next trial, and one more in case that fails.
-const LANES_PER_MERGE: usize = 2;
-
 /// Closest-hit distances for tentative rays: the scene in rendering, analytic geometry in tests.
 pub trait TentativeTracer {
     /// Distance `t` (in units of `ray.dir`) of the closest hit in `[ray.tmin, ray.tmax]`.
@@ -43,54 +37,6 @@ pub trait TentativeTracer {
     /// [`TentativeTracer::closest`] of up to 8 rays; bit `i` of `active` selects `rays[i]`,
     /// inactive lanes answer `None`.
     fn closest8(&self, rays: &[Ray; PACKET], active: u8) -> [Option<f32>; PACKET];
-
-    /// Whether anything at all (a delta surface too) is hit in `[ray.tmin, ray.tmax]`, for up
-    /// to 8 rays: bit `i` is set where active ray `i` hits. By default from
-    /// [`TentativeTracer::closest8`]; a tracer with an any-hit query answers it faster.
-    fn any8(&self, rays: &[Ray; PACKET], active: u8) -> u8 {
-        let hits = self.closest8(rays, active);
-        (0..PACKET)
-            .filter(|&i| hits[i].is_some())
-            .fold(0, |mask, i| mask | (1 << i))
-    }
-
-    /// What decides each tentative ray of a packet: `None` where ray `i` hits anything before
-    /// `approach[i]`, its [`TentativeTracer::closest8`] answer elsewhere. A trial whose ray is
-    /// blocked before its approach (where it comes within reach of the r-sphere,
-    /// [`AngularBound`] computes it; 0 for none) fails whatever its closest hit is, so a
-    /// packet's successes and failures are exactly those of single rays.
-    ///
-    /// Two queries: any hit up to each approach, then closest hits, for the rays left, from a
-    /// little before it. Nothing lies before that point, so the closest hit found is the whole
-    /// ray's. Any-hit queries stop at their first hit, and the closest-hit query sees only a
-    /// short segment around the sphere, so both cost less than closest hits of whole rays.
-    fn reaching8(
-        &self,
-        rays: &[Ray; PACKET],
-        approach: &[f32; PACKET],
-        active: u8,
-    ) -> [Option<f32>; PACKET] {
-        // The second query starts this fraction before the first one ends, so a hit where they
-        // meet is seen by one of them however each rounds the ends of its segment.
-        const OVERLAP: f32 = 1.0 / 1024.0;
-        let (mut near, mut far) = (*rays, *rays);
-        let mut probed = 0u8;
-        for lane in (0..PACKET).filter(|&lane| active & (1 << lane) != 0 && approach[lane] > 0.0) {
-            near[lane].tmax = approach[lane];
-            far[lane].tmin = approach[lane] * (1.0 - OVERLAP);
-            probed |= 1 << lane;
-        }
-        let blocked = if probed == 0 {
-            0
-        } else {
-            self.any8(&near, probed)
-        };
-        let left = active & !blocked;
-        if left == 0 {
-            return [None; PACKET];
-        }
-        self.closest8(&far, left)
-    }
 }
 
 impl TentativeTracer for Scene {
@@ -102,10 +48,6 @@ impl TentativeTracer for Scene {
         let mut hits = [None; PACKET];
         self.intersect8(rays, active, &mut hits);
         hits.map(|hit| hit.map(|hit| hit.t))
-    }
-
-    fn any8(&self, rays: &[Ray; PACKET], active: u8) -> u8 {
-        self.accel.occluded8(rays, active)
     }
 }
 
@@ -127,10 +69,6 @@ impl TentativeTracer for StoredVerticesOnly<'_> {
             hit.filter(|hit| !self.0.hits_delta_surface(hit))
                 .map(|hit| hit.t)
         })
-    }
-
-    fn any8(&self, rays: &[Ray; PACKET], active: u8) -> u8 {
-        self.0.accel.occluded8(rays, active)
     }
 }
 
@@ -490,34 +428,6 @@ impl<'a> AngularBound<'a> {
         })
     }
 
-    /// The approach of a trial's ray (see [`TentativeTracer::reaching8`]): the parameter where
-    /// it enters a sphere around the target a little larger than the r-sphere, 0 when it starts
-    /// inside that sphere. Every point before it lies farther from the target than r by far
-    /// more than [`AngularBound::accepts`] rounds (2^-8 r, plus 1e-5 of the coordinates'
-    /// magnitude: about 40 times f32's rounding of a hit point, and of how differently any-hit
-    /// and closest-hit tests may round the same `t`), so a hit before it is certainly a failure.
-    fn approach(&self, ray: &Ray) -> f32 {
-        let o = (ray.origin - self.target).as_dvec3();
-        let w = ray.dir.as_dvec3();
-        let magnitude = ray.origin.abs().max_element() as f64
-            + self.target.abs().max_element() as f64
-            + ray.tmax as f64 * ray.dir.abs().max_element() as f64;
-        let reach = self.radius as f64 * (1.0 + 1.0 / 256.0) + 1e-5 * magnitude;
-        let c = o.length_squared() - reach * reach;
-        if c <= 0.0 {
-            return 0.0;
-        }
-        let half_b = o.dot(w);
-        let disc = (half_b * half_b - w.length_squared() * c).max(0.0);
-        // The nearer root in its stable form c / q (the roots' product is c / a); q > 0 for a
-        // ray that heads into the sphere, as every traced trial's does.
-        let q = disc.sqrt() - half_b;
-        if q <= 0.0 {
-            return 0.0;
-        }
-        (c / q) as f32
-    }
-
     fn accepts(&self, ray: &Ray, t: Option<f32>) -> bool {
         t.is_some_and(|t| (ray.at(t) - self.target).length_squared() <= self.radius * self.radius)
     }
@@ -542,6 +452,8 @@ pub struct Estimate {
     pub trials: u32,
     /// Rays traced; with packets this includes the lanes after the first success.
     pub rays: u32,
+    /// Of those, the rays traced in packets.
+    pub packed: u32,
 }
 
 impl Estimate {
@@ -566,9 +478,10 @@ pub struct Estimator {
 }
 
 impl Default for Estimator {
-    /// Single rays: Embree traces a packet's rays only 1.1 to 1.3 times faster than single
-    /// ones, and tracing is under half of the stage, so packets gain nothing measurable even
-    /// with their lanes filled (README, "UPG tentative rays").
+    /// Single rays: Embree traces a packet's rays 1.1 to 1.4 times faster than single ones,
+    /// but tracing is under 40% of the stage, a render's gathers hold too few merges to fill
+    /// packets, and the stage is under a fifth of a render: packets gain nothing measurable
+    /// (README, "UPG tentative rays").
     fn default() -> Self {
         Estimator {
             packet: PacketWidth::One,
@@ -579,7 +492,7 @@ impl Default for Estimator {
 
 impl Estimator {
     /// Counts trials in `bound` up to the first success. Packets and single rays return the same
-    /// estimate for the same `rng`; packets may draw the numbers of up to 7 trials more.
+    /// estimate for the same `rng` (a merge alone is traced with single rays at either width).
     pub fn estimate<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
@@ -598,9 +511,9 @@ impl Estimator {
 
     /// Estimates of several merges, merge `i` drawing its trials in `bounds[i]` from `rngs[i]`;
     /// `done(i, estimate)` receives each. Single rays finish one merge after another. Packets
-    /// fill their 8 lanes with the next trials of every merge still open, in turn, so a merge
-    /// needing 2 or 3 trials does not leave the other lanes idle; the trials of one merge keep
-    /// their order, so every estimate is the one single rays give.
+    /// fill their 8 lanes with the next trial of each of 8 merges still open, in turn, while 8
+    /// are open; the trials of one merge keep their order, so every estimate is the one single
+    /// rays give.
     pub fn estimate_all<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
@@ -613,24 +526,35 @@ impl Estimator {
             outcome: Outcome::Unreachable,
             trials: 0,
             rays: 0,
+            packed: 0,
         };
         for (i, _) in bounds.iter().enumerate().filter(|(_, b)| b.p_bound <= 0.0) {
             done(i, unreachable);
         }
         let reachable = (0..bounds.len()).filter(|&i| bounds[i].p_bound > 0.0);
-        let finish = |bound: &AngularBound, first: Option<u32>, rays: u32| Estimate {
-            outcome: match first {
-                Some(n) => Outcome::Estimate((n as f64 / bound.p_bound) as f32),
-                None => Outcome::Capped,
-            },
-            trials: first.unwrap_or(self.max_trials),
-            rays,
-        };
+        let finish =
+            |bound: &AngularBound, first: Option<u32>, (rays, packed): (u32, u32)| Estimate {
+                outcome: match first {
+                    Some(n) => Outcome::Estimate((n as f64 / bound.p_bound) as f32),
+                    None => Outcome::Capped,
+                },
+                trials: first.unwrap_or(self.max_trials),
+                rays,
+                packed,
+            };
+        // Too few merges to fill a packet: single rays, without the packets' bookkeeping.
+        let few = reachable.clone().nth(PACKET - 1).is_none();
         match self.packet {
             PacketWidth::One => {
                 for i in reachable {
                     let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i], (0, 0));
-                    done(i, finish(&bounds[i], first, rays));
+                    done(i, finish(&bounds[i], first, (rays, 0)));
+                }
+            }
+            PacketWidth::Eight if few => {
+                for i in reachable {
+                    let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i], (0, 0));
+                    done(i, finish(&bounds[i], first, (rays, 0)));
                 }
             }
             PacketWidth::Eight => self.packets(
@@ -663,21 +587,21 @@ impl Estimator {
         (None, rays)
     }
 
-    /// Packets of 8 lanes over the merges `open`; `done(i, first success, rays)` as each ends.
-    /// A packet takes the next trials of every open merge in turn, at most
-    /// [`LANES_PER_MERGE`] each: more would be mostly trials after a merge's first success,
-    /// which single rays never trace. With fewer than [`PACKET_MERGES`] merges open the lanes
-    /// would stay empty or hold such trials, and a packet costs several single rays, so the
-    /// merges left go on with single rays.
+    /// Packets of 8 lanes over the merges `open`; `done(i, first success, (rays, of them
+    /// packed))` as each ends. A packet takes the next trial of each of 8 open merges, in turn.
+    /// With fewer than 8 open it would have to leave lanes empty or fill them with further
+    /// trials of the same merges, mostly ones after a merge's first success, which single rays
+    /// never trace; a packet costs several single rays, so the merges left go on with single
+    /// rays.
     fn packets<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
         bounds: &[AngularBound],
         rngs: &mut [Rng],
         mut open: Vec<usize>,
-        mut done: impl FnMut(usize, Option<u32>, u32),
+        mut done: impl FnMut(usize, Option<u32>, (u32, u32)),
     ) {
-        /// Trials drawn and rays traced so far, and the first success found.
+        /// Trials drawn and rays traced (all in packets) so far, and the first success found.
         #[derive(Clone, Copy, Default)]
         struct Progress {
             drawn: u32,
@@ -686,49 +610,39 @@ impl Estimator {
         }
         let mut progress = vec![Progress::default(); bounds.len()];
         let mut packet = [Ray::new(Vec3::ZERO, Vec3::Z); PACKET];
-        let mut approach = [0.0f32; PACKET];
         // Which merge and which of its trials each lane holds.
         let mut lanes = [(0usize, 0u32); PACKET];
         let mut turn = 0;
-        while open.len() >= PACKET_MERGES {
+        while open.len() >= PACKET {
             let mut active = 0u8;
             let mut filled = 0;
-            // Sweep the open merges, one traced trial each per sweep, until the lanes are full,
-            // each merge has its share, or every open merge has drawn its cap.
-            for _ in 0..LANES_PER_MERGE {
-                let mut placed = false;
-                for k in 0..open.len() {
-                    if filled == PACKET {
-                        break;
-                    }
-                    let i = open[(turn + k) % open.len()];
-                    let p = &mut progress[i];
-                    while p.drawn < self.max_trials {
-                        p.drawn += 1;
-                        if let Some(ray) = bounds[i].trial(&mut rngs[i]) {
-                            packet[filled] = ray;
-                            approach[filled] = bounds[i].approach(&ray);
-                            lanes[filled] = (i, p.drawn);
-                            active |= 1 << filled;
-                            p.rays += 1;
-                            filled += 1;
-                            placed = true;
-                            break;
-                        }
-                    }
-                }
-                if !placed || filled == PACKET {
+            // One traced trial from each open merge in turn, until the lanes are full or every
+            // open merge has been asked (those reaching their cap place none).
+            for k in 0..open.len() {
+                if filled == PACKET {
                     break;
                 }
+                let i = open[(turn + k) % open.len()];
+                let p = &mut progress[i];
+                while p.drawn < self.max_trials {
+                    p.drawn += 1;
+                    if let Some(ray) = bounds[i].trial(&mut rngs[i]) {
+                        packet[filled] = ray;
+                        lanes[filled] = (i, p.drawn);
+                        active |= 1 << filled;
+                        p.rays += 1;
+                        filled += 1;
+                        break;
+                    }
+                }
             }
-            turn += 1;
+            turn += PACKET;
             if active != 0 {
-                let hits = tracer.reaching8(&packet, &approach, active);
+                let hits = tracer.closest8(&packet, active);
                 for (lane, &(i, n)) in lanes.iter().enumerate().take(filled) {
-                    let p = &mut progress[i];
-                    // A merge's lanes hold its trials in order: the first success decides.
-                    if p.first.is_none() && bounds[i].accepts(&packet[lane], hits[lane]) {
-                        p.first = Some(n);
+                    // One lane per merge: its trial is the merge's next.
+                    if bounds[i].accepts(&packet[lane], hits[lane]) {
+                        progress[i].first = Some(n);
                     }
                 }
             }
@@ -736,7 +650,7 @@ impl Estimator {
                 let p = progress[i];
                 let ended = p.first.is_some() || p.drawn >= self.max_trials;
                 if ended {
-                    done(i, p.first, p.rays);
+                    done(i, p.first, (p.rays, p.rays));
                 }
                 !ended
             });
@@ -744,7 +658,7 @@ impl Estimator {
         for i in open {
             let p = progress[i];
             let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i], (p.drawn, p.rays));
-            done(i, first, rays);
+            done(i, first, (rays, p.rays));
         }
     }
 }
