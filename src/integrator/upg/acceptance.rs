@@ -544,26 +544,19 @@ impl Estimator {
             };
         // Too few merges to fill a packet: single rays, without the packets' bookkeeping.
         let few = reachable.clone().nth(PACKET - 1).is_none();
-        match self.packet {
-            PacketWidth::One => {
-                for i in reachable {
-                    let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i], (0, 0));
-                    done(i, finish(&bounds[i], first, (rays, 0)));
-                }
+        if self.packet == PacketWidth::One || few {
+            for i in reachable {
+                let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i], (0, 0));
+                done(i, finish(&bounds[i], first, (rays, 0)));
             }
-            PacketWidth::Eight if few => {
-                for i in reachable {
-                    let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i], (0, 0));
-                    done(i, finish(&bounds[i], first, (rays, 0)));
-                }
-            }
-            PacketWidth::Eight => self.packets(
+        } else {
+            self.packets(
                 tracer,
                 bounds,
                 rngs,
                 reachable.collect(),
                 |i, first, rays| done(i, finish(&bounds[i], first, rays)),
-            ),
+            );
         }
     }
 
