@@ -12,14 +12,16 @@
 //! predecessors). The number K of merges per gather grows with the light paths per iteration
 //! (the pixel count) times pi r^2: about 1.5 at 256x256 and 15 at 768x768 on `cornell-glossy`
 //! at its default radius. After criterion's figures a table compares both widths measured
-//! alternately in one run, for K = 1, 4 and 16, and the tracing alone.
+//! alternately in one run (thread CPU time: the machine is shared), for K = 1, 4, 8 and 16, and
+//! the tracing alone.
 
+use cpu_time::ThreadTime;
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use glam::Vec3;
 use std::cell::RefCell;
 use std::hint::black_box;
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 use vmerge::accel::{AccelKind, Ray, PACKET};
 use vmerge::bsdf::{Bsdf, TransportMode};
 use vmerge::frame::Frame;
@@ -32,7 +34,7 @@ use common::load_scene;
 
 /// Merges per pass, whatever the gather size.
 const MERGES: usize = 4096;
-const GATHER_SIZES: [usize; 3] = [1, 4, 16];
+const GATHER_SIZES: [usize; 4] = [1, 4, 8, 16];
 const WALK_LENGTH: usize = 4;
 const PASSES: u64 = 8;
 
@@ -187,6 +189,7 @@ struct Totals {
     merges: u64,
     trials: u64,
     rays: u64,
+    packed: u64,
     capped: u64,
 }
 
@@ -236,6 +239,7 @@ fn run<'s, T: TentativeTracer>(
             totals.merges += 1;
             totals.trials += e.trials as u64;
             totals.rays += e.rays as u64;
+            totals.packed += e.packed as u64;
             totals.capped += e.capped() as u64;
         });
     }
@@ -266,12 +270,16 @@ impl TentativeTracer for Recording<'_> {
     }
 }
 
-/// Nanoseconds per ray of the recorded packets' rays traced one by one and as the packets.
-fn tracing_alone(scene: &Scene, packets: &[([Ray; PACKET], u8)]) -> (f64, f64) {
+/// CPU nanoseconds per ray of the recorded packets' rays traced one by one and as the
+/// packets, best of 5 (thread CPU time: the machine is shared); `None` without packets.
+fn tracing_alone(scene: &Scene, packets: &[([Ray; PACKET], u8)]) -> Option<(f64, f64)> {
     let rays: u32 = packets.iter().map(|(_, a)| a.count_ones()).sum();
+    if rays == 0 {
+        return None;
+    }
     let mut best = [f64::INFINITY; 2];
     for _ in 0..5 {
-        let start = Instant::now();
+        let start = ThreadTime::now();
         for (packet, active) in packets {
             for (i, ray) in packet.iter().enumerate() {
                 if active & (1 << i) != 0 {
@@ -280,14 +288,14 @@ fn tracing_alone(scene: &Scene, packets: &[([Ray; PACKET], u8)]) -> (f64, f64) {
             }
         }
         best[0] = best[0].min(start.elapsed().as_secs_f64());
-        let start = Instant::now();
+        let start = ThreadTime::now();
         for (packet, active) in packets {
             black_box(scene.closest8(packet, *active));
         }
         best[1] = best[1].min(start.elapsed().as_secs_f64());
     }
     let [one, eight] = best.map(|s| s * 1e9 / rays as f64);
-    (one, eight)
+    Some((one, eight))
 }
 
 /// One row of the final table: both widths on one kind and size of gather.
@@ -298,9 +306,12 @@ struct Row {
     merges_per_s: [f64; 2],
     trials_per_merge: f64,
     rays_per_merge: [f64; 2],
+    /// Share of the packet width's rays traced in packets.
+    packed: f64,
     capped: u64,
-    /// ns per ray of the packets' rays traced alone, one by one and as packets.
-    tracing: (f64, f64),
+    /// ns per ray of the packets' rays traced alone, one by one and as packets; `None` where
+    /// no gather made a packet.
+    tracing: Option<(f64, f64)>,
 }
 
 /// Several passes per width, alternating; pass `p` draws the same random numbers at both
@@ -320,13 +331,14 @@ fn table_row(
         for k in 0..widths.len() {
             // Alternate which width goes first, so load from other processes weighs on both.
             let i = (k + pass as usize) % widths.len();
-            let start = Instant::now();
+            let start = ThreadTime::now();
             let t = run(scene, scene, gathers, radius, &estimator(widths[i]), pass);
             time[i] += start.elapsed();
             totals[i].merges += t.merges;
             totals[i].trials += t.trials;
             totals[i].rays += t.rays;
             totals[i].capped += t.capped;
+            totals[i].packed += t.packed;
         }
     }
     assert_eq!(
@@ -347,6 +359,7 @@ fn table_row(
         merges_per_s: [0, 1].map(|i| n / time[i].as_secs_f64()),
         trials_per_merge: totals[0].trials as f64 / n,
         rays_per_merge: [0, 1].map(|i| totals[i].rays as f64 / n),
+        packed: totals[1].packed as f64 / totals[1].rays.max(1) as f64,
         capped: totals[0].capped,
         tracing: tracing_alone(scene, &recording.packets.into_inner()),
     }
@@ -406,7 +419,7 @@ fn benches(c: &mut Criterion) {
         AccelKind::default_kind().name()
     );
     println!(
-        "{:15} {:10} {:>3} {:>10} {:>10} {:>7} {:>6} {:>6} {:>6} {:>6} {:>8} {:>8} {:>6}",
+        "{:15} {:10} {:>3} {:>10} {:>10} {:>7} {:>6} {:>6} {:>6} {:>7} {:>6} {:>8} {:>8} {:>6}",
         "scene",
         "gathers",
         "K",
@@ -416,14 +429,20 @@ fn benches(c: &mut Criterion) {
         "trials",
         "rays 1",
         "rays 8",
+        "packed",
         "capped",
         "ns/ray 1",
         "ns/ray 8",
-        "8 / 1"
+        "1 / 8"
     );
     for r in &rows {
+        let tracing = r
+            .tracing
+            .map_or("       -        -      -".to_string(), |(one, eight)| {
+                format!("{one:>8.1} {eight:>8.1} {:>6.2}", one / eight)
+            });
         println!(
-            "{:15} {:10} {:>3} {:>10.0} {:>10.0} {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>6} {:>8.1} {:>8.1} {:>6.2}",
+            "{:15} {:10} {:>3} {:>10.0} {:>10.0} {:>7.2} {:>6.2} {:>6.2} {:>6.2} {:>7.2} {:>6} {tracing}",
             r.scene,
             r.side.name(),
             r.size,
@@ -433,12 +452,14 @@ fn benches(c: &mut Criterion) {
             r.trials_per_merge,
             r.rays_per_merge[0],
             r.rays_per_merge[1],
+            r.packed,
             r.capped,
-            r.tracing.0,
-            r.tracing.1,
-            r.tracing.0 / r.tracing.1
         );
     }
+    println!(
+        "(packed: the share of the packet width's rays traced in packets; ns/ray: those rays \
+         traced alone, CPU time)"
+    );
 }
 
 criterion_group! {

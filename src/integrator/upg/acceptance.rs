@@ -452,6 +452,8 @@ pub struct Estimate {
     pub trials: u32,
     /// Rays traced; with packets this includes the lanes after the first success.
     pub rays: u32,
+    /// Of those, the rays traced in packets.
+    pub packed: u32,
 }
 
 impl Estimate {
@@ -476,9 +478,10 @@ pub struct Estimator {
 }
 
 impl Default for Estimator {
-    /// Single rays: Embree traces a packet's rays only 1.1 to 1.3 times faster than single
-    /// ones, and tracing is under half of the stage, so packets gain nothing measurable even
-    /// with their lanes filled (README, "UPG tentative rays").
+    /// Single rays: Embree traces a packet's rays 1.1 to 1.4 times faster than single ones,
+    /// but tracing is under 40% of the stage, a render's gathers hold too few merges to fill
+    /// packets, and the stage is under a fifth of a render: packets gain nothing measurable
+    /// (README, "UPG tentative rays").
     fn default() -> Self {
         Estimator {
             packet: PacketWidth::One,
@@ -489,7 +492,7 @@ impl Default for Estimator {
 
 impl Estimator {
     /// Counts trials in `bound` up to the first success. Packets and single rays return the same
-    /// estimate for the same `rng`; packets may draw the numbers of up to 7 trials more.
+    /// estimate for the same `rng` (a merge alone is traced with single rays at either width).
     pub fn estimate<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
@@ -508,9 +511,9 @@ impl Estimator {
 
     /// Estimates of several merges, merge `i` drawing its trials in `bounds[i]` from `rngs[i]`;
     /// `done(i, estimate)` receives each. Single rays finish one merge after another. Packets
-    /// fill their 8 lanes with the next trials of every merge still open, in turn, so a merge
-    /// needing 2 or 3 trials does not leave the other lanes idle; the trials of one merge keep
-    /// their order, so every estimate is the one single rays give.
+    /// fill their 8 lanes with the next trial of each of 8 merges still open, in turn, while 8
+    /// are open; the trials of one merge keep their order, so every estimate is the one single
+    /// rays give.
     pub fn estimate_all<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
@@ -523,45 +526,50 @@ impl Estimator {
             outcome: Outcome::Unreachable,
             trials: 0,
             rays: 0,
+            packed: 0,
         };
         for (i, _) in bounds.iter().enumerate().filter(|(_, b)| b.p_bound <= 0.0) {
             done(i, unreachable);
         }
         let reachable = (0..bounds.len()).filter(|&i| bounds[i].p_bound > 0.0);
-        let finish = |bound: &AngularBound, first: Option<u32>, rays: u32| Estimate {
-            outcome: match first {
-                Some(n) => Outcome::Estimate((n as f64 / bound.p_bound) as f32),
-                None => Outcome::Capped,
-            },
-            trials: first.unwrap_or(self.max_trials),
-            rays,
-        };
-        match self.packet {
-            PacketWidth::One => {
-                for i in reachable {
-                    let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i]);
-                    done(i, finish(&bounds[i], first, rays));
-                }
+        let finish =
+            |bound: &AngularBound, first: Option<u32>, (rays, packed): (u32, u32)| Estimate {
+                outcome: match first {
+                    Some(n) => Outcome::Estimate((n as f64 / bound.p_bound) as f32),
+                    None => Outcome::Capped,
+                },
+                trials: first.unwrap_or(self.max_trials),
+                rays,
+                packed,
+            };
+        // Too few merges to fill a packet: single rays, without the packets' bookkeeping.
+        let few = reachable.clone().nth(PACKET - 1).is_none();
+        if self.packet == PacketWidth::One || few {
+            for i in reachable {
+                let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i], (0, 0));
+                done(i, finish(&bounds[i], first, (rays, 0)));
             }
-            PacketWidth::Eight => self.packets(
+        } else {
+            self.packets(
                 tracer,
                 bounds,
                 rngs,
                 reachable.collect(),
                 |i, first, rays| done(i, finish(&bounds[i], first, rays)),
-            ),
+            );
         }
     }
 
-    /// The index of the first success (or `None` when capped), and the rays traced.
+    /// The index of the first success (or `None` when capped), and the rays traced, going on
+    /// after `drawn` trials that traced `rays` rays and did not succeed.
     fn single<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
         bound: &AngularBound,
         rng: &mut Rng,
+        (drawn, mut rays): (u32, u32),
     ) -> (Option<u32>, u32) {
-        let mut rays = 0;
-        for n in 1..=self.max_trials {
+        for n in drawn + 1..=self.max_trials {
             if let Some(ray) = bound.trial(rng) {
                 rays += 1;
                 if bound.accepts(&ray, tracer.closest(&ray)) {
@@ -572,16 +580,21 @@ impl Estimator {
         (None, rays)
     }
 
-    /// Packets of 8 lanes over the merges `open`; `done(i, first success, rays)` as each ends.
+    /// Packets of 8 lanes over the merges `open`; `done(i, first success, (rays, of them
+    /// packed))` as each ends. A packet takes the next trial of each of 8 open merges, in turn.
+    /// With fewer than 8 open it would have to leave lanes empty or fill them with further
+    /// trials of the same merges, mostly ones after a merge's first success, which single rays
+    /// never trace; a packet costs several single rays, so the merges left go on with single
+    /// rays.
     fn packets<T: TentativeTracer + ?Sized>(
         &self,
         tracer: &T,
         bounds: &[AngularBound],
         rngs: &mut [Rng],
         mut open: Vec<usize>,
-        mut done: impl FnMut(usize, Option<u32>, u32),
+        mut done: impl FnMut(usize, Option<u32>, (u32, u32)),
     ) {
-        /// Trials drawn and rays traced so far, and the first success found.
+        /// Trials drawn and rays traced (all in packets) so far, and the first success found.
         #[derive(Clone, Copy, Default)]
         struct Progress {
             drawn: u32,
@@ -593,44 +606,36 @@ impl Estimator {
         // Which merge and which of its trials each lane holds.
         let mut lanes = [(0usize, 0u32); PACKET];
         let mut turn = 0;
-        while !open.is_empty() {
+        while open.len() >= PACKET {
             let mut active = 0u8;
             let mut filled = 0;
-            // Sweep the open merges, one traced trial each per sweep, until the lanes are full
-            // or every open merge has drawn its cap.
-            while filled < PACKET {
-                let mut placed = false;
-                for k in 0..open.len() {
-                    if filled == PACKET {
-                        break;
-                    }
-                    let i = open[(turn + k) % open.len()];
-                    let p = &mut progress[i];
-                    while p.drawn < self.max_trials {
-                        p.drawn += 1;
-                        if let Some(ray) = bounds[i].trial(&mut rngs[i]) {
-                            packet[filled] = ray;
-                            lanes[filled] = (i, p.drawn);
-                            active |= 1 << filled;
-                            p.rays += 1;
-                            filled += 1;
-                            placed = true;
-                            break;
-                        }
-                    }
-                }
-                if !placed {
+            // One traced trial from each open merge in turn, until the lanes are full or every
+            // open merge has been asked (those reaching their cap place none).
+            for k in 0..open.len() {
+                if filled == PACKET {
                     break;
                 }
+                let i = open[(turn + k) % open.len()];
+                let p = &mut progress[i];
+                while p.drawn < self.max_trials {
+                    p.drawn += 1;
+                    if let Some(ray) = bounds[i].trial(&mut rngs[i]) {
+                        packet[filled] = ray;
+                        lanes[filled] = (i, p.drawn);
+                        active |= 1 << filled;
+                        p.rays += 1;
+                        filled += 1;
+                        break;
+                    }
+                }
             }
-            turn += 1;
+            turn += PACKET;
             if active != 0 {
                 let hits = tracer.closest8(&packet, active);
                 for (lane, &(i, n)) in lanes.iter().enumerate().take(filled) {
-                    let p = &mut progress[i];
-                    // A merge's lanes hold its trials in order: the first success decides.
-                    if p.first.is_none() && bounds[i].accepts(&packet[lane], hits[lane]) {
-                        p.first = Some(n);
+                    // One lane per merge: its trial is the merge's next.
+                    if bounds[i].accepts(&packet[lane], hits[lane]) {
+                        progress[i].first = Some(n);
                     }
                 }
             }
@@ -638,10 +643,15 @@ impl Estimator {
                 let p = progress[i];
                 let ended = p.first.is_some() || p.drawn >= self.max_trials;
                 if ended {
-                    done(i, p.first, p.rays);
+                    done(i, p.first, (p.rays, p.rays));
                 }
                 !ended
             });
+        }
+        for i in open {
+            let p = progress[i];
+            let (first, rays) = self.single(tracer, &bounds[i], &mut rngs[i], (p.drawn, p.rays));
+            done(i, first, (rays, p.rays));
         }
     }
 }

@@ -288,6 +288,7 @@ impl<'s> Tentative<'s> {
             stats.upg.merges += 1;
             stats.upg.trials += estimate.trials as u64;
             stats.upg.tentative_rays += estimate.rays as u64;
+            stats.upg.packet_rays += estimate.packed as u64;
             stats.rays += estimate.rays as u64;
             values[i] = match estimate.outcome {
                 Outcome::Estimate(inv_p_acc) => values[i] * inv_p_acc,

@@ -77,6 +77,8 @@ pub struct UpgCounters {
     /// misses the gathering sphere needs no ray).
     pub trials: u64,
     pub tentative_rays: u64,
+    /// Tentative rays traced in packets (`--upg-packet 8`, gathers of enough merges).
+    pub packet_rays: u64,
     /// Merges dropped at the trial cap.
     pub capped: u64,
 }
@@ -88,6 +90,7 @@ impl std::ops::Add for UpgCounters {
             merges: self.merges + other.merges,
             trials: self.trials + other.trials,
             tentative_rays: self.tentative_rays + other.tentative_rays,
+            packet_rays: self.packet_rays + other.packet_rays,
             capped: self.capped + other.capped,
         }
     }
@@ -102,6 +105,13 @@ impl UpgCounters {
             ("upg_trials_per_merge".into(), per_merge(self.trials)),
             ("upg_rays_per_merge".into(), per_merge(self.tentative_rays)),
             ("upg_tentative_rays".into(), self.tentative_rays.to_string()),
+            (
+                "upg_packet_ray_share".into(),
+                format!(
+                    "{:.3}",
+                    self.packet_rays as f64 / self.tentative_rays.max(1) as f64
+                ),
+            ),
             ("upg_capped_merges".into(), self.capped.to_string()),
         ]
     }
