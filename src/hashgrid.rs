@@ -19,8 +19,8 @@ use rayon::prelude::*;
 const SPAN_LIMIT: i64 = (1 << 21) - 8;
 /// Cell coordinates before the span limit, clamped so far-away points cannot overflow.
 const CELL_LIMIT: f32 = (1u32 << 30) as f32;
-/// Bits of one radix-sort digit: 2^11 counters of a pass fit L1.
-const DIGIT_BITS: u32 = 11;
+/// Bits of one radix-sort digit: the 2^12 counters of a pass (16 KiB) fit L1.
+const DIGIT_BITS: u32 = 12;
 /// Points per parallel chunk of the key and gather passes.
 const CHUNK: usize = 1 << 12;
 
@@ -63,10 +63,10 @@ pub struct HashGrid {
     /// a power of two long.
     table: Vec<Slot>,
     shift: u32,
-    /// The sort's and the table build's buffers, kept so a rebuild allocates nothing.
-    keys: Vec<u64>,
-    scratch_keys: Vec<u64>,
-    scratch_indices: Vec<u32>,
+    /// The sort's and the table build's buffers, kept so a rebuild allocates nothing: (key,
+    /// index) pairs packed into one integer, u64 while keys fit 32 bits, u128 beyond.
+    narrow: [Vec<u64>; 2],
+    wide: [Vec<u128>; 2],
     /// Distinct cells in order, each with the end of its range.
     cells: Vec<(u64, u32)>,
     histograms: Vec<u32>,
@@ -78,10 +78,10 @@ impl HashGrid {
         let mut grid = HashGrid::default();
         grid.rebuild(points, radius);
         // A one-off grid keeps only what queries read.
-        grid.keys = Vec::new();
-        grid.scratch_keys = Vec::new();
-        grid.scratch_indices = Vec::new();
+        grid.narrow = Default::default();
+        grid.wide = Default::default();
         grid.cells = Vec::new();
+        grid.histograms = Vec::new();
         grid
     }
 
@@ -105,10 +105,16 @@ impl HashGrid {
         if n == 0 {
             return;
         }
-        self.fit_key_space(points);
-        self.sort_by_cell(points);
-        self.gather(points);
-        self.find_cells();
+        let bits = self.fit_key_space(points);
+        if bits <= 32 {
+            let mut items = std::mem::take(&mut self.narrow);
+            self.arrange(points, &mut items, bits);
+            self.narrow = items;
+        } else {
+            let mut items = std::mem::take(&mut self.wide);
+            self.arrange(points, &mut items, bits);
+            self.wide = items;
+        }
         self.fill_table();
     }
 
@@ -226,8 +232,8 @@ impl HashGrid {
     /// The lowest cell and the span per axis (cells are monotone in the coordinate, so they
     /// are the cells of the bounding box's corners), and the key strides: coordinates padded
     /// by two on each side, so the triplet keys of any cell and a query's neighbour rows stay
-    /// inside the key space without wrapping into another row.
-    fn fit_key_space(&mut self, points: &[Vec3]) {
+    /// inside the key space without wrapping into another row. Returns the key bits in use.
+    fn fit_key_space(&mut self, points: &[Vec3]) -> u32 {
         let (min, max) = points
             .par_iter()
             .fold(
@@ -246,103 +252,65 @@ impl HashGrid {
         let width = |axis: usize| self.span[axis] as u64 + 5;
         self.stride_y = width(0);
         self.stride_z = width(0) * width(1);
+        let top_key = width(2) * self.stride_z - 1;
+        u64::BITS - top_key.leading_zeros()
     }
 
-    /// Sorts the points' indices by cell key, stably (so by cell, then index): a least
-    /// significant digit radix sort over the key bits in use, skipping digits all keys share.
-    fn sort_by_cell(&mut self, points: &[Vec3]) {
+    /// Sorts the points by cell key, stably (so by cell, then index), copies them into cell
+    /// order and finds the distinct cells.
+    fn arrange<T: Item>(&mut self, points: &[Vec3], [items, scratch]: &mut [Vec<T>; 2], bits: u32) {
         let n = points.len();
-        let (inv_cell, low, span) = (self.inv_cell, self.low, self.span);
-        let (stride_y, stride_z) = (self.stride_y, self.stride_z);
-        self.keys.resize(n, 0);
-        self.indices.resize(n, 0);
-        self.keys
+        items.resize(n, T::default());
+        let grid = &*self;
+        items
             .par_chunks_mut(CHUNK)
-            .zip(self.indices.par_chunks_mut(CHUNK))
             .zip(points.par_chunks(CHUNK))
             .enumerate()
-            .for_each(|(chunk, ((keys, indices), points))| {
-                for (i, ((key, index), p)) in keys.iter_mut().zip(indices).zip(points).enumerate() {
-                    // Clamped below too: a NaN coordinate lands in a valid cell, and no
-                    // distance test accepts it.
-                    let padded = |axis: usize| {
-                        ((cell(p[axis], inv_cell) - low[axis]).clamp(0, span[axis]) + 2) as u64
-                    };
-                    *key = padded(0) + padded(1) * stride_y + padded(2) * stride_z;
-                    *index = (chunk * CHUNK + i) as u32;
+            .for_each(|(chunk, (items, points))| {
+                for (i, (item, &p)) in items.iter_mut().zip(points).enumerate() {
+                    *item = T::new(grid.key_of(p), (chunk * CHUNK + i) as u32);
                 }
             });
+        radix_sort(items, scratch, &mut self.histograms, bits);
 
-        let top_key = (span[0] as u64 + 2)
-            + (span[1] as u64 + 2) * stride_y
-            + (span[2] as u64 + 2) * stride_z;
-        let bits = u64::BITS - top_key.leading_zeros();
-        let passes = bits.div_ceil(DIGIT_BITS);
-        let digit_bits = bits.div_ceil(passes);
-        let buckets = 1usize << digit_bits;
-        let digit_mask = buckets as u64 - 1;
-        self.histograms.clear();
-        self.histograms.resize(passes as usize * buckets, 0);
-        for &key in &self.keys {
-            for (pass, histogram) in self.histograms.chunks_exact_mut(buckets).enumerate() {
-                histogram[((key >> (pass as u32 * digit_bits)) & digit_mask) as usize] += 1;
-            }
-        }
-        self.scratch_keys.resize(n, 0);
-        self.scratch_indices.resize(n, 0);
-        for (pass, histogram) in self.histograms.chunks_exact_mut(buckets).enumerate() {
-            if histogram.iter().any(|&count| count as usize == n) {
-                continue;
-            }
-            // Counts to the first position of each bucket.
-            let mut sum = 0;
-            for count in histogram.iter_mut() {
-                (*count, sum) = (sum, sum + *count);
-            }
-            let shift = pass as u32 * digit_bits;
-            for (&key, &index) in self.keys.iter().zip(&self.indices) {
-                let bucket = &mut histogram[((key >> shift) & digit_mask) as usize];
-                let at = *bucket as usize;
-                *bucket += 1;
-                self.scratch_keys[at] = key;
-                self.scratch_indices[at] = index;
-            }
-            std::mem::swap(&mut self.keys, &mut self.scratch_keys);
-            std::mem::swap(&mut self.indices, &mut self.scratch_indices);
-        }
-    }
-
-    /// Copies the points into cell order, one pass in parallel chunks (each point in its own
-    /// cache line, in random order).
-    fn gather(&mut self, points: &[Vec3]) {
-        let n = points.len();
+        // One pass gathers every point once (each in its own cache line, in random order).
         self.xs.resize(n, 0.0);
         self.ys.resize(n, 0.0);
         self.zs.resize(n, 0.0);
-        self.indices
+        self.indices.resize(n, 0);
+        items
             .par_chunks(CHUNK)
             .zip(self.xs.par_chunks_mut(CHUNK))
             .zip(self.ys.par_chunks_mut(CHUNK))
             .zip(self.zs.par_chunks_mut(CHUNK))
-            .for_each(|(((indices, xs), ys), zs)| {
-                for (i, &index) in indices.iter().enumerate() {
+            .zip(self.indices.par_chunks_mut(CHUNK))
+            .for_each(|((((items, xs), ys), zs), indices)| {
+                for (i, item) in items.iter().enumerate() {
+                    let index = item.index();
                     let p = points[index as usize];
-                    (xs[i], ys[i], zs[i]) = (p.x, p.y, p.z);
+                    (xs[i], ys[i], zs[i], indices[i]) = (p.x, p.y, p.z, index);
                 }
             });
-    }
 
-    /// The distinct cells of the sorted keys, each with the end of its range.
-    fn find_cells(&mut self) {
         self.cells.clear();
-        for (i, pair) in self.keys.windows(2).enumerate() {
-            if pair[0] != pair[1] {
-                self.cells.push((pair[0], i as u32 + 1));
+        for (i, pair) in items.windows(2).enumerate() {
+            if pair[0].key() != pair[1].key() {
+                self.cells.push((pair[0].key(), i as u32 + 1));
             }
         }
-        if let Some(&last) = self.keys.last() {
-            self.cells.push((last, self.keys.len() as u32));
+        if let Some(last) = items.last() {
+            self.cells.push((last.key(), n as u32));
         }
+    }
+
+    /// The key of the cell of a point. Offsets are clamped below too: a NaN coordinate lands
+    /// in a valid cell, and no distance test accepts it.
+    #[inline]
+    fn key_of(&self, p: Vec3) -> u64 {
+        let padded = |axis: usize| {
+            ((cell(p[axis], self.inv_cell) - self.low[axis]).clamp(0, self.span[axis]) + 2) as u64
+        };
+        padded(0) + padded(1) * self.stride_y + padded(2) * self.stride_z
     }
 
     /// Inserts every triplet once, in key order: the triplet centred on key t spans the cells
@@ -359,8 +327,9 @@ impl HashGrid {
                 None => 3,
             })
             .sum();
-        // Load at most a half: a miss, the commonest lookup on surfaces, ends after few probes.
-        let capacity = (2 * count).next_power_of_two().max(16);
+        // Load at most two thirds: a miss, the commonest lookup on surfaces, ends after a few
+        // probes in one or two cache lines.
+        let capacity = (count + count / 2).next_power_of_two().max(16);
         self.shift = u64::BITS - capacity.trailing_zeros();
         self.table.resize(capacity, EMPTY);
         let mask = capacity - 1;
@@ -422,6 +391,79 @@ impl HashGrid {
                 visit(indices[j] as usize, d2[j]);
             }
         }
+    }
+}
+
+/// A cell key and a point index packed into one integer (key above, index in the low 32 bits),
+/// so the sort moves one value per point.
+trait Item: Copy + Default + Send + Sync {
+    fn new(key: u64, index: u32) -> Self;
+    fn key(self) -> u64;
+    fn index(self) -> u32;
+}
+
+impl Item for u64 {
+    fn new(key: u64, index: u32) -> Self {
+        key << 32 | u64::from(index)
+    }
+    fn key(self) -> u64 {
+        self >> 32
+    }
+    fn index(self) -> u32 {
+        self as u32
+    }
+}
+
+impl Item for u128 {
+    fn new(key: u64, index: u32) -> Self {
+        u128::from(key) << 32 | u128::from(index)
+    }
+    fn key(self) -> u64 {
+        (self >> 32) as u64
+    }
+    fn index(self) -> u32 {
+        self as u32
+    }
+}
+
+/// Sorts `items` stably by key: a least significant digit radix sort over the `bits` key bits
+/// in use, skipping digits all keys share; `scratch` and `histograms` are its buffers.
+fn radix_sort<T: Item>(
+    items: &mut Vec<T>,
+    scratch: &mut Vec<T>,
+    histograms: &mut Vec<u32>,
+    bits: u32,
+) {
+    let n = items.len();
+    let passes = bits.max(1).div_ceil(DIGIT_BITS);
+    let digit_bits = bits.max(1).div_ceil(passes);
+    let buckets = 1usize << digit_bits;
+    let mask = buckets as u64 - 1;
+    histograms.clear();
+    histograms.resize(passes as usize * buckets, 0);
+    for item in items.iter() {
+        let key = item.key();
+        for (pass, histogram) in histograms.chunks_exact_mut(buckets).enumerate() {
+            histogram[((key >> (pass as u32 * digit_bits)) & mask) as usize] += 1;
+        }
+    }
+    scratch.resize(n, T::default());
+    for (pass, histogram) in histograms.chunks_exact_mut(buckets).enumerate() {
+        if histogram.iter().any(|&count| count as usize == n) {
+            continue;
+        }
+        // Counts to the first position of each bucket.
+        let mut sum = 0;
+        for count in histogram.iter_mut() {
+            (*count, sum) = (sum, sum + *count);
+        }
+        let shift = pass as u32 * digit_bits;
+        for &item in items.iter() {
+            let bucket = &mut histogram[((item.key() >> shift) & mask) as usize];
+            scratch[*bucket as usize] = item;
+            *bucket += 1;
+        }
+        std::mem::swap(items, scratch);
     }
 }
 
