@@ -1,16 +1,24 @@
-//! The workload of 000 Table 2.1: the hash grid against a kd-tree (kiddo's `ImmutableKdTree`)
-//! for fixed-radius queries over points scattered uniformly over the surfaces of the Cornell box.
+//! Fixed-radius queries: the hash grid against SmallVCM's grid layout and a kd-tree (kiddo's
+//! `ImmutableKdTree`), on two workloads.
 //!
-//! Two independent point sets are sampled area-uniformly over the scene's triangles: both
-//! structures are built over the first and queried at points of the second. Radii are 0.01 and
-//! 0.1 of the scene size, the diagonal of its bounding box (the diameter of the bounding sphere
-//! the renderer uses). Each query counts its neighbours and sums their indices; both structures
-//! must agree on the totals. Timings are single-threaded; the grid's parallel build, its design,
-//! is measured as well. The ratios (kd-tree time / grid time) are printed at the end.
+//! - 000 Table 2.1: two independent point sets sampled area-uniformly over the triangles of the
+//!   Cornell box; the structures are built over the first and queried at points of the second.
+//!   Radii are 0.01 and 0.1 of the scene size, the diagonal of its bounding box (the diameter
+//!   of the bounding sphere the renderer uses).
+//! - Light vertices: the positions a vcm iteration stores (one light sub-path per pixel of a
+//!   512 x 512 image, traced with the library's lights, BSDFs and accelerator) on cornell-box
+//!   and SmallVCM's scene g1, queried at the eye sub-paths' vertices in pixel order, with the
+//!   scene's default radius and 0.01 of its size.
+//!
+//! Each query counts its neighbours and sums their indices; all structures must agree on the
+//! totals. Timings are single-threaded; the grid's parallel build, its design, is measured as
+//! well. Grid and SmallVCM layout rebuild into their buffers of the previous sample, as they do
+//! across a render's iterations; the kd-tree is built anew. The ratios (other / grid) are
+//! printed at the end.
 //!
 //! Run: `cargo bench --bench hashgrid`.
 
-use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode};
+use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
 use glam::Vec3;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use kiddo::SquaredEuclidean;
@@ -18,12 +26,13 @@ use rayon::prelude::*;
 use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::hint::black_box;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
-use vmerge::accel::AccelKind;
+use vmerge::accel::{AccelKind, Ray};
+use vmerge::bsdf::TransportMode;
 use vmerge::hashgrid::HashGrid;
 use vmerge::sampling::{uniform_triangle, Distribution1D, Rng};
-use vmerge::scene::{self, LoadOptions};
+use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
 /// kiddo's fastest tree for static points: SoA leaves scanned in chunks, with the default
 /// bucket size; `u32` items, as the grid's indices.
@@ -34,6 +43,161 @@ const SIZES: [usize; 3] = [1_000_000, 3_000_000, 10_000_000];
 /// one timed iteration answers (the next batch each time, cycling): the larger radius returns
 /// 100 times more neighbours, so it gets 100 times fewer.
 const RADII: [(f32, usize, usize); 2] = [(0.01, 100_000, 1_000), (0.1, 1_000, 10)];
+/// Queries per timed iteration on the light-vertex sets.
+const LIGHT_BATCH: usize = 1_000;
+/// The light-vertex sets' image: one light sub-path per pixel.
+const LIGHT_RESOLUTION: u32 = 512;
+
+/// SmallVCM's grid layout (its hashgrid.hxx), re-implemented from its description: cells of
+/// side 2r, a counting sort of the points into a flat table of cell ranges indexed by a hash
+/// of the cell coordinates, as many slots as points (no comparison sort, no key compare:
+/// cells that share a slot share its range, and the distance test rejects the strangers); a
+/// query visits the 2 x 2 x 2 cells nearest to it. Two changes make it comparable: the points
+/// are copied into slot order, one array per axis, and scanned by the grid's vectorised
+/// distance test (SmallVCM reads them through their indices, one at a time); cells are those
+/// of the world grid, not of the points' bounding box, so no query outside the box is
+/// skipped; and a slot two of a query's cells share is scanned once, so results are exact.
+#[derive(Default)]
+struct FlatGrid {
+    radius_sq: f32,
+    inv_cell: f32,
+    /// Per slot the end of its range (its start is the previous slot's end); counts and
+    /// then starts while building.
+    ends: Vec<u32>,
+    xs: Vec<f32>,
+    ys: Vec<f32>,
+    zs: Vec<f32>,
+    indices: Vec<u32>,
+}
+
+impl FlatGrid {
+    fn rebuild(&mut self, points: &[Vec3], radius: f32) {
+        self.radius_sq = radius * radius;
+        self.inv_cell = 1.0 / (2.0 * radius);
+        let n = points.len();
+        self.ends.clear();
+        self.ends.resize(n.max(1), 0);
+        for &p in points {
+            let slot = self.slot(self.cell(p));
+            self.ends[slot] += 1;
+        }
+        let mut sum = 0;
+        for count in &mut self.ends {
+            (*count, sum) = (sum, sum + *count);
+        }
+        self.xs.resize(n, 0.0);
+        self.ys.resize(n, 0.0);
+        self.zs.resize(n, 0.0);
+        self.indices.resize(n, 0);
+        for (i, &p) in points.iter().enumerate() {
+            let slot = self.slot(self.cell(p));
+            let at = self.ends[slot] as usize;
+            self.ends[slot] += 1;
+            (self.xs[at], self.ys[at], self.zs[at]) = (p.x, p.y, p.z);
+            self.indices[at] = i as u32;
+        }
+    }
+
+    fn cell(&self, p: Vec3) -> [i32; 3] {
+        let c = (p * self.inv_cell).floor();
+        [c.x as i32, c.y as i32, c.z as i32]
+    }
+
+    /// SmallVCM's hash, modulo the table size.
+    fn slot(&self, [x, y, z]: [i32; 3]) -> usize {
+        let h = (x as u32).wrapping_mul(73_856_093)
+            ^ (y as u32).wrapping_mul(19_349_663)
+            ^ (z as u32).wrapping_mul(83_492_791);
+        (h % self.ends.len() as u32) as usize
+    }
+
+    fn query(&self, q: Vec3, mut visit: impl FnMut(usize, f32)) {
+        let scaled = q * self.inv_cell;
+        let c = scaled.floor();
+        let fraction = scaled - c;
+        let base = [c.x as i32, c.y as i32, c.z as i32];
+        // The neighbour on the side of the cell's half the query lies in.
+        let other = |axis: usize| base[axis] + if fraction[axis] < 0.5 { -1 } else { 1 };
+        let (xo, yo, zo) = (other(0), other(1), other(2));
+        let [x, y, z] = base;
+        let slots = [
+            [x, y, z],
+            [x, y, zo],
+            [x, yo, z],
+            [x, yo, zo],
+            [xo, y, z],
+            [xo, y, zo],
+            [xo, yo, z],
+            [xo, yo, zo],
+        ]
+        .map(|cell| self.slot(cell));
+        for (j, &slot) in slots.iter().enumerate() {
+            if slots[..j].contains(&slot) {
+                continue;
+            }
+            let begin = if slot == 0 { 0 } else { self.ends[slot - 1] };
+            scan(
+                [&self.xs, &self.ys, &self.zs],
+                &self.indices,
+                begin as usize..self.ends[slot] as usize,
+                q,
+                self.radius_sq,
+                &mut visit,
+            );
+        }
+    }
+}
+
+/// The grid's distance test (src/hashgrid.rs): a block of squared distances at a time into a
+/// bit mask of the points inside.
+#[inline]
+fn scan(
+    [xs, ys, zs]: [&[f32]; 3],
+    indices: &[u32],
+    range: std::ops::Range<usize>,
+    q: Vec3,
+    radius_sq: f32,
+    visit: &mut impl FnMut(usize, f32),
+) {
+    const BLOCK: usize = 64;
+    let xs = &xs[range.clone()];
+    let ys = &ys[range.clone()];
+    let zs = &zs[range.clone()];
+    let indices = &indices[range];
+    for (((xs, ys), zs), indices) in xs
+        .chunks(BLOCK)
+        .zip(ys.chunks(BLOCK))
+        .zip(zs.chunks(BLOCK))
+        .zip(indices.chunks(BLOCK))
+    {
+        let mut d2 = [0.0f32; BLOCK];
+        for (((d2, &x), &y), &z) in d2.iter_mut().zip(xs).zip(ys).zip(zs) {
+            let (dx, dy, dz) = (x - q.x, y - q.y, z - q.z);
+            *d2 = dx * dx + dy * dy + dz * dz;
+        }
+        let mut inside = 0u64;
+        for (j, &d2) in d2.iter().enumerate().take(xs.len()) {
+            inside |= u64::from(d2 <= radius_sq) << j;
+        }
+        while inside != 0 {
+            let j = inside.trailing_zeros() as usize;
+            inside &= inside - 1;
+            visit(indices[j] as usize, d2[j]);
+        }
+    }
+}
+
+fn load(path: &Path) -> Scene {
+    scene::load(
+        path,
+        &LoadOptions {
+            accel: AccelKind::default_kind(),
+            lenient: true,
+            shading_normals: true,
+        },
+    )
+    .expect("bench scene loads")
+}
 
 /// Area-uniform points on the triangles of a scene.
 struct Surfaces {
@@ -42,17 +206,8 @@ struct Surfaces {
 }
 
 impl Surfaces {
-    fn load(path: &Path) -> Self {
-        let scene = scene::load(
-            path,
-            &LoadOptions {
-                accel: AccelKind::Bvh,
-                lenient: true,
-                shading_normals: true,
-            },
-        )
-        .expect("bench scene loads");
-        let geometry = scene.geometry;
+    fn new(scene: &Scene) -> Self {
+        let geometry = &scene.geometry;
         assert!(geometry.spheres.is_empty(), "only triangles are sampled");
         let triangles: Vec<[Vec3; 3]> = (0..geometry.triangles.len() as u32)
             .map(|i| geometry.triangle_vertices(i))
@@ -99,7 +254,94 @@ impl Surfaces {
     }
 }
 
-/// Neighbour count and index sum over all queries: the work both structures do, and their
+/// The non-delta vertices of one random walk from `ray`, as vcm's sub-paths are traced: BSDF
+/// sampling, Russian roulette from path length 3 (the default) by the BSDF's continuation
+/// probability, at most the scene's maximum path length.
+fn walk(scene: &Scene, mut ray: Ray, mode: TransportMode, rng: &mut Rng, out: &mut Vec<Vec3>) {
+    let max_length = match scene.defaults.max_path_length {
+        0 => u32::MAX,
+        n => n,
+    };
+    let mut path_length = 1;
+    while let Some(hit) = scene.intersect(&ray) {
+        let Some(bsdf) = scene.bsdf_at(&hit, -ray.dir.normalize(), mode) else {
+            break;
+        };
+        if !bsdf.is_delta() {
+            out.push(hit.position);
+        }
+        let Some(s) = bsdf.sample([rng.next_f32(), rng.next_f32(), rng.next_f32()]) else {
+            break;
+        };
+        if path_length + 2 > max_length
+            || (path_length >= 3 && rng.next_f32() >= bsdf.continuation_probability())
+            || s.f.is_black()
+        {
+            break;
+        }
+        ray = Ray::spawn(hit.position, hit.ng, s.wi);
+        path_length += 1;
+    }
+}
+
+/// A vcm iteration's light vertices (one light sub-path per pixel) and its eye vertices (one
+/// eye sub-path per pixel, in pixel order), in parallel chunks of paths with their own streams.
+fn vertex_sets(scene: &Scene, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
+    const CHUNK: usize = 1 << 12;
+    let camera = Camera::new(&scene.cameras[0], LIGHT_RESOLUTION, LIGHT_RESOLUTION);
+    let pixels = camera.pixel_count();
+    let gather = |trace: &(dyn Fn(usize, &mut Rng, &mut Vec<Vec3>) + Sync), stream: u64| {
+        (0..pixels.div_ceil(CHUNK))
+            .into_par_iter()
+            .flat_map_iter(|chunk| {
+                let mut rng = Rng::from_seed(seed, 2 * chunk as u64 + stream);
+                let mut out = Vec::new();
+                for pixel in chunk * CHUNK..((chunk + 1) * CHUNK).min(pixels) {
+                    trace(pixel, &mut rng, &mut out);
+                }
+                out
+            })
+            .collect::<Vec<Vec3>>()
+    };
+    let light = gather(
+        &|_, rng, out| {
+            let lights = &scene.lights;
+            let Some((index, _)) = lights.pick(rng.next_f32()) else {
+                return;
+            };
+            let light = lights.get(index);
+            let (u_pos, u_dir) = (rng.next_2d(), rng.next_2d());
+            let Some(e) = light.emit(u_pos, u_dir) else {
+                return;
+            };
+            let origin = if light.is_finite() && !light.is_delta() {
+                Ray::spawn(e.position, e.normal, e.dir).origin
+            } else {
+                e.position
+            };
+            walk(
+                scene,
+                Ray::new(origin, e.dir),
+                TransportMode::Importance,
+                rng,
+                out,
+            );
+        },
+        0,
+    );
+    let width = camera.width as usize;
+    let eye = gather(
+        &|pixel, rng, out| {
+            let [jx, jy] = rng.next_2d();
+            let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
+            walk(scene, ray, TransportMode::Radiance, rng, out);
+        },
+        1,
+    );
+    (light, eye)
+}
+
+/// Neighbour count and index sum over all queries: the work every structure does, and their
 /// agreement check.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct Totals {
@@ -108,6 +350,17 @@ struct Totals {
 }
 
 fn query_grid(grid: &HashGrid, queries: &[Vec3]) -> Totals {
+    let mut totals = Totals::default();
+    for &q in queries {
+        grid.query(q, |i, _| {
+            totals.count += 1;
+            totals.index_sum += i as u64;
+        });
+    }
+    totals
+}
+
+fn query_flat(grid: &FlatGrid, queries: &[Vec3]) -> Totals {
     let mut totals = Totals::default();
     for &q in queries {
         grid.query(q, |i, _| {
@@ -156,150 +409,268 @@ impl Record {
     }
 }
 
-fn benches(c: &mut Criterion) {
-    let surfaces = Surfaces::load(
-        &Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml"),
-    );
-    let diagonal = surfaces.diagonal();
-    let max_queries = RADII.iter().map(|&(_, n, _)| n).max().unwrap_or(0);
-    let queries = surfaces.sample(max_queries, 2);
-    let query_arrays: Vec<[f32; 3]> = queries.iter().map(|q| q.to_array()).collect();
-    let single = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .expect("thread pool");
-    let threads = rayon::current_num_threads();
-    let record = Record::default();
+/// One workload: points, queries (in batches timed one per iteration, cycling) and a radius.
+struct Workload<'a> {
+    name: String,
+    points: &'a [Vec3],
+    queries: &'a [Vec3],
+    batch: usize,
+    radius: f32,
+}
 
-    for n in SIZES {
-        let points = surfaces.sample(n, 1);
-        let arrays: Vec<[f32; 3]> = points.iter().map(|p| p.to_array()).collect();
-        let mut group = c.benchmark_group(format!("hashgrid/{n}"));
-        group
-            .sample_size(10)
-            .sampling_mode(SamplingMode::Flat)
-            .warm_up_time(Duration::from_millis(200))
-            .measurement_time(Duration::from_secs(2));
+/// Times the builds and queries of one workload under `key`; the kd-tree's build once per
+/// point set (`tree_key`), as it does not depend on the radius.
+fn measure(
+    c: &mut Criterion,
+    record: &Record,
+    single: &rayon::ThreadPool,
+    w: &Workload,
+    tree: &KdTree,
+    tree_key: &str,
+) {
+    let threads = rayon::current_num_threads();
+    let key = &w.name;
+    let mut group = c.benchmark_group(format!("hashgrid/{key}"));
+    group
+        .sample_size(10)
+        .sampling_mode(SamplingMode::Flat)
+        .warm_up_time(Duration::from_millis(200))
+        .measurement_time(Duration::from_secs(2));
+    if record
+        .median(&format!("{tree_key}/build/kd-tree"))
+        .is_none()
+    {
+        let arrays: Vec<[f32; 3]> = w.points.iter().map(|p| p.to_array()).collect();
         group.bench_function("build/kd-tree", |b| {
             b.iter_custom(|iters| {
-                record.time(&format!("{n}/build/kd-tree"), iters, || {
+                record.time(&format!("{tree_key}/build/kd-tree"), iters, || {
                     KdTree::new_from_slice(&arrays)
                 })
             })
         });
-        let tree = KdTree::new_from_slice(&arrays);
-        for (fraction, query_count, batch) in RADII {
-            let radius = fraction * diagonal;
-            let key = format!("{n}/{fraction}");
-            group.bench_function(BenchmarkId::new("build/grid", fraction), |b| {
-                b.iter_custom(|iters| {
-                    record.time(&format!("{key}/build/grid"), iters, || {
-                        single.install(|| HashGrid::build(&points, radius))
-                    })
-                })
-            });
-            group.bench_function(
-                BenchmarkId::new(format!("build/grid-{threads}-threads"), fraction),
-                |b| {
-                    b.iter_custom(|iters| {
-                        record.time(&format!("{key}/build/grid-par"), iters, || {
-                            HashGrid::build(&points, radius)
-                        })
-                    })
-                },
-            );
-            let grid = HashGrid::build(&points, radius);
-            let queries = &queries[..query_count];
-            let query_arrays = &query_arrays[..query_count];
-            let expected = query_tree(&tree, query_arrays, radius);
-            assert_eq!(
-                query_grid(&grid, queries),
-                expected,
-                "{n} points, r {radius}"
-            );
-            record
-                .0
-                .borrow_mut()
-                .insert(format!("{key}/neighbours"), vec![expected.count as f64]);
-            let batches = query_count / batch;
-            let mut next = 0;
-            group.bench_function(BenchmarkId::new("query/kd-tree", fraction), |b| {
-                b.iter_custom(|iters| {
-                    record.time(&format!("{key}/query/kd-tree"), iters, || {
-                        next = (next + 1) % batches;
-                        query_tree(&tree, &query_arrays[next * batch..][..batch], radius)
-                    })
-                })
-            });
-            group.bench_function(BenchmarkId::new("query/grid", fraction), |b| {
-                b.iter_custom(|iters| {
-                    record.time(&format!("{key}/query/grid"), iters, || {
-                        next = (next + 1) % batches;
-                        query_grid(&grid, &queries[next * batch..][..batch])
-                    })
-                })
-            });
-        }
-        group.finish();
     }
+    let mut grid = HashGrid::default();
+    group.bench_function("build/grid", |b| {
+        b.iter_custom(|iters| {
+            record.time(&format!("{key}/build/grid"), iters, || {
+                single.install(|| grid.rebuild(w.points, w.radius))
+            })
+        })
+    });
+    group.bench_function(format!("build/grid-{threads}-threads"), |b| {
+        b.iter_custom(|iters| {
+            record.time(&format!("{key}/build/grid-par"), iters, || {
+                grid.rebuild(w.points, w.radius)
+            })
+        })
+    });
+    let mut flat = FlatGrid::default();
+    group.bench_function("build/smallvcm-layout", |b| {
+        b.iter_custom(|iters| {
+            record.time(&format!("{key}/build/flat"), iters, || {
+                flat.rebuild(w.points, w.radius)
+            })
+        })
+    });
+    grid.rebuild(w.points, w.radius);
+    flat.rebuild(w.points, w.radius);
+    let query_arrays: Vec<[f32; 3]> = w.queries.iter().map(|q| q.to_array()).collect();
+    let expected = query_tree(tree, &query_arrays, w.radius);
+    assert_eq!(query_grid(&grid, w.queries), expected, "grid, {key}");
+    assert_eq!(
+        query_flat(&flat, w.queries),
+        expected,
+        "SmallVCM layout, {key}"
+    );
+    record.0.borrow_mut().insert(
+        format!("{key}/neighbours"),
+        vec![expected.count as f64 / w.queries.len() as f64],
+    );
+    let batches = w.queries.len() / w.batch;
+    let batch = |next: usize| next * w.batch..(next + 1) * w.batch;
+    let mut next = 0;
+    group.bench_function("query/kd-tree", |b| {
+        b.iter_custom(|iters| {
+            record.time(&format!("{key}/query/kd-tree"), iters, || {
+                next = (next + 1) % batches;
+                query_tree(tree, &query_arrays[batch(next)], w.radius)
+            })
+        })
+    });
+    group.bench_function("query/grid", |b| {
+        b.iter_custom(|iters| {
+            record.time(&format!("{key}/query/grid"), iters, || {
+                next = (next + 1) % batches;
+                query_grid(&grid, &w.queries[batch(next)])
+            })
+        })
+    });
+    group.bench_function("query/smallvcm-layout", |b| {
+        b.iter_custom(|iters| {
+            record.time(&format!("{key}/query/flat"), iters, || {
+                next = (next + 1) % batches;
+                query_flat(&flat, &w.queries[batch(next)])
+            })
+        })
+    });
+    group.finish();
+}
 
-    println!("\nScene size (bounding-box diagonal) {diagonal:.3}; times are medians over samples.");
+/// One table row per workload: build times in ms, query times in µs per query, ratios of the
+/// other structures' times to the grid's.
+fn print_table(record: &Record, rows: &[(String, String, String, usize)]) {
+    let threads = rayon::current_num_threads();
     println!(
-        "{:>10} {:>6} {:>9} | {:>9} {:>9} {:>9} {:>6} {:>6} | {:>10} {:>10} {:>6}",
-        "points",
-        "r",
+        "{:>22} {:>9} | {:>9} {:>9} {:>9} {:>9} {:>6} {:>6} | {:>9} {:>9} {:>9} {:>6} {:>6}",
+        "workload",
         "nbrs/q",
         "kd ms",
         "grid ms",
         format!("grid {threads}t"),
-        "ratio",
-        format!("{threads}t"),
+        "flat ms",
+        "kd/g",
+        "flat/g",
         "kd us/q",
         "grid us/q",
-        "ratio"
+        "flat us/q",
+        "kd/g",
+        "flat/g"
     );
-    for n in SIZES {
-        let build_kd = record.median(&format!("{n}/build/kd-tree"));
-        for (fraction, query_count, batch) in RADII {
-            let key = format!("{n}/{fraction}");
-            let get = |what: &str| record.median(&format!("{key}/{what}"));
-            let (
-                Some(build_kd),
-                Some(build_grid),
-                Some(build_par),
-                Some(query_kd),
-                Some(query_grid),
-                Some(neighbours),
-            ) = (
-                build_kd,
-                get("build/grid"),
-                get("build/grid-par"),
-                get("query/kd-tree"),
-                get("query/grid"),
-                get("neighbours"),
-            )
-            else {
-                continue;
-            };
-            let per_query = 1e6 / batch as f64;
-            println!(
-                "{:>10} {:>6} {:>9.0} | {:>9.1} {:>9.1} {:>9.1} {:>6.2} {:>6.2} | {:>10.3} {:>10.3} {:>6.2}",
-                n,
-                fraction,
-                neighbours / query_count as f64,
-                build_kd * 1e3,
-                build_grid * 1e3,
-                build_par * 1e3,
-                build_kd / build_grid,
-                build_kd / build_par,
-                query_kd * per_query,
-                query_grid * per_query,
-                query_kd / query_grid
-            );
-        }
+    for (label, key, tree_key, batch) in rows {
+        let get = |what: &str| record.median(&format!("{key}/{what}"));
+        let (
+            Some(build_kd),
+            Some(build_grid),
+            Some(build_par),
+            Some(build_flat),
+            Some(query_kd),
+            Some(query_grid),
+            Some(query_flat),
+            Some(neighbours),
+        ) = (
+            record.median(&format!("{tree_key}/build/kd-tree")),
+            get("build/grid"),
+            get("build/grid-par"),
+            get("build/flat"),
+            get("query/kd-tree"),
+            get("query/grid"),
+            get("query/flat"),
+            get("neighbours"),
+        )
+        else {
+            continue;
+        };
+        let per_query = 1e6 / *batch as f64;
+        println!(
+            "{:>22} {:>9.1} | {:>9.1} {:>9.1} {:>9.1} {:>9.1} {:>6.2} {:>6.2} | {:>9.3} {:>9.3} {:>9.3} {:>6.2} {:>6.2}",
+            label,
+            neighbours,
+            build_kd * 1e3,
+            build_grid * 1e3,
+            build_par * 1e3,
+            build_flat * 1e3,
+            build_kd / build_grid,
+            build_flat / build_grid,
+            query_kd * per_query,
+            query_grid * per_query,
+            query_flat * per_query,
+            query_kd / query_grid,
+            query_flat / query_grid
+        );
     }
 }
 
+fn benches(c: &mut Criterion) {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let single = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("thread pool");
+    let record = Record::default();
+    let mut rows = Vec::new();
+
+    // 000 Table 2.1.
+    let cornell = root.join("scenes/cornell-box/scene.toml");
+    let surfaces = Surfaces::new(&load(&cornell));
+    let diagonal = surfaces.diagonal();
+    let max_queries = RADII.iter().map(|&(_, n, _)| n).max().unwrap_or(0);
+    let queries = surfaces.sample(max_queries, 2);
+    for n in SIZES {
+        let points = surfaces.sample(n, 1);
+        let arrays: Vec<[f32; 3]> = points.iter().map(|p| p.to_array()).collect();
+        let tree = KdTree::new_from_slice(&arrays);
+        drop(arrays);
+        for (fraction, query_count, batch) in RADII {
+            let workload = Workload {
+                name: format!("{n}/{fraction}"),
+                points: &points,
+                queries: &queries[..query_count],
+                batch,
+                radius: fraction * diagonal,
+            };
+            measure(c, &record, &single, &workload, &tree, &n.to_string());
+            rows.push((
+                format!("{}M r {fraction}", n / 1_000_000),
+                workload.name,
+                n.to_string(),
+                batch,
+            ));
+        }
+    }
+
+    // Light vertices of a vcm iteration.
+    let mut scenes = vec![("cornell-box", cornell.clone())];
+    let g1: PathBuf =
+        root.join("../shared/peers/smallvcm/scenes/g1_largemirror_ceiling/scene.toml");
+    if g1.exists() {
+        scenes.push(("g1", g1));
+    } else {
+        eprintln!("skipping scene g1: {} not found", g1.display());
+    }
+    let mut light_rows = Vec::new();
+    for (name, path) in scenes {
+        let scene = load(&path);
+        let (points, queries) = vertex_sets(&scene, 1);
+        let size = 2.0 * scene.bounding_sphere.1;
+        let arrays: Vec<[f32; 3]> = points.iter().map(|p| p.to_array()).collect();
+        let tree = KdTree::new_from_slice(&arrays);
+        drop(arrays);
+        let usable = queries.len() / LIGHT_BATCH * LIGHT_BATCH;
+        println!(
+            "{name}: {} light vertices, {} eye vertices, size {size:.3}, default radius {:.5}",
+            points.len(),
+            queries.len(),
+            scene.default_radius()
+        );
+        for (label, radius) in [
+            ("default r", scene.default_radius()),
+            ("r 0.01", 0.01 * size),
+        ] {
+            let workload = Workload {
+                name: format!("{name}/{label}"),
+                points: &points,
+                queries: &queries[..usable],
+                batch: LIGHT_BATCH,
+                radius,
+            };
+            measure(c, &record, &single, &workload, &tree, name);
+            light_rows.push((
+                format!("{name} {label}"),
+                workload.name,
+                name.to_string(),
+                LIGHT_BATCH,
+            ));
+        }
+    }
+
+    println!("\nTimes are medians over samples; flat = SmallVCM's layout; ratios other / grid.");
+    println!("000 Table 2.1 (Cornell box surfaces, size {diagonal:.3}):");
+    print_table(&record, &rows);
+    println!(
+        "Light vertices of a vcm iteration ({LIGHT_RESOLUTION}^2 paths), eye vertices as queries:"
+    );
+    print_table(&record, &light_rows);
+}
 criterion_group! {
     name = hashgrid;
     // Criterion's charts need a system font stack the project does not depend on.

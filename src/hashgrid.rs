@@ -1,115 +1,121 @@
 //! The triplet-cell hash grid of 000 sec. 2.4.9: fixed-radius queries over light vertices.
 //!
 //! Points are sorted by cell (z, y, x) with cells of side r (000 eq. 2.87), so the points of one
-//! cell, and of three cells adjacent along x, are contiguous. The hash map stores for each cell
+//! cell, and of three cells adjacent along x, are contiguous. A hash table stores for each cell
 //! the range spanning the cell and its two x-neighbours, so a query visits 3 x 3 ranges (9
 //! lookups) instead of 27 cells, in long streaming runs.
+//!
+//! Cell coordinates are taken relative to the points' lowest cell and packed into one u64 key
+//! (x lowest), so the sort is a radix sort over only the key bits in use and the table is a flat
+//! open-addressing array of (key, range) slots: one multiply to hash, one u64 compare to match.
+//! The cells are those of the world grid (floor(p / r)), whatever the points' extent, so the
+//! order of query results depends only on the points, never on threads.
 
 use glam::Vec3;
-use hashbrown::HashMap;
 use rayon::prelude::*;
-use rustc_hash::FxBuildHasher;
 
-/// A cell's (z, y, x) coordinates, each offset to unsigned, in 32 bits apiece: ordering the
-/// keys orders the cells (z, y, x), and a key with the point's index in the low 32 bits sorts as
-/// one integer.
-type CellKey = u128;
+/// Cells further than this from the lowest cell along an axis merge into the last one (queries
+/// there stay exact, they only test more points), so three padded coordinates fit 63 bits.
+const SPAN_LIMIT: i64 = (1 << 21) - 8;
+/// Cell coordinates before the span limit, clamped so far-away points cannot overflow.
+const CELL_LIMIT: f32 = (1u32 << 30) as f32;
+/// Bits of one radix-sort digit: the 2^12 counters of a pass (16 KiB) fit L1.
+const DIGIT_BITS: u32 = 12;
+/// Points per parallel chunk of the key and gather passes.
+const CHUNK: usize = 1 << 12;
 
-const X: CellKey = 1;
-const Y: CellKey = 1 << 32;
-const Z: CellKey = 1 << 64;
+/// One table slot: a triplet's key and the range of its points; `EMPTY.key` is no valid key.
+#[derive(Clone, Copy)]
+struct Slot {
+    key: u64,
+    begin: u32,
+    end: u32,
+}
 
+const EMPTY: Slot = Slot {
+    key: u64::MAX,
+    begin: 0,
+    end: 0,
+};
+
+/// A grid over no points; [`HashGrid::rebuild`] fills it.
+#[derive(Default)]
 pub struct HashGrid {
     radius: f32,
     radius_sq: f32,
     inv_cell: f32,
+    /// How far from a query its cells are taken: the radius and a margin for rounding.
+    reach: f32,
+    /// The points' lowest cell, per axis.
+    low: [i64; 3],
+    /// The highest cell offset from `low` in use (at most `SPAN_LIMIT`), per axis.
+    span: [i64; 3],
+    /// Key steps of one cell along y and z (x's is 1).
+    stride_y: u64,
+    stride_z: u64,
     /// Point coordinates in cell order, one array per axis so a range streams through
     /// distance tests in SIMD lanes, and the points' indices in the input.
     xs: Vec<f32>,
     ys: Vec<f32>,
     zs: Vec<f32>,
     indices: Vec<u32>,
-    /// Cell -> range of points covering the cell and its x-neighbours.
-    triplets: HashMap<CellKey, (u32, u32), FxBuildHasher>,
+    /// Triplet key -> range of points covering the cell and its x-neighbours; linear probing,
+    /// a power of two long.
+    table: Vec<Slot>,
+    shift: u32,
+    /// The sort's and the table build's buffers, kept so a rebuild allocates nothing: (key,
+    /// index) pairs packed into one integer, u64 while keys fit 32 bits, u128 beyond.
+    narrow: [Vec<u64>; 2],
+    wide: [Vec<u128>; 2],
+    /// Distinct cells in order, each with the end of its range.
+    cells: Vec<(u64, u32)>,
+    histograms: Vec<u32>,
 }
 
 impl HashGrid {
     /// Builds the grid over `points` for queries of the given radius (> 0).
     pub fn build(points: &[Vec3], radius: f32) -> Self {
-        assert!(points.len() <= u32::MAX as usize, "at most u32::MAX points");
-        let inv_cell = 1.0 / radius;
-        let mut keys: Vec<u128> = points
-            .par_iter()
-            .enumerate()
-            .map(|(i, &p)| cell_key(p, inv_cell) << 32 | i as u128)
-            .collect();
-        // Unique keys make the order, and so the order of query results, independent of threads.
-        keys.par_sort_unstable();
-        // One pass gathers every point once (each in its own cache line, in random order).
-        const CHUNK: usize = 1 << 12;
-        let n = points.len();
-        let (mut xs, mut ys, mut zs) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        let mut indices = vec![0; n];
-        keys.par_chunks(CHUNK)
-            .zip(xs.par_chunks_mut(CHUNK))
-            .zip(ys.par_chunks_mut(CHUNK))
-            .zip(zs.par_chunks_mut(CHUNK))
-            .zip(indices.par_chunks_mut(CHUNK))
-            .for_each(|((((keys, xs), ys), zs), indices)| {
-                for (i, &key) in keys.iter().enumerate() {
-                    let index = key as u32;
-                    let p = points[index as usize];
-                    (xs[i], ys[i], zs[i], indices[i]) = (p.x, p.y, p.z, index);
-                }
-            });
+        let mut grid = HashGrid::default();
+        grid.rebuild(points, radius);
+        // A one-off grid keeps only what queries read.
+        grid.narrow = Default::default();
+        grid.wide = Default::default();
+        grid.cells = Vec::new();
+        grid.histograms = Vec::new();
+        grid
+    }
 
-        // Cells with the end of their range, in order.
-        let mut cells: Vec<(CellKey, u32)> = Vec::new();
-        for (i, pair) in keys.windows(2).enumerate() {
-            if pair[0] >> 32 != pair[1] >> 32 {
-                cells.push((pair[0] >> 32, i as u32 + 1));
-            }
+    /// Rebuilds the grid over `points` for the given radius (> 0), reusing its buffers: once
+    /// they have grown to the largest point set, a rebuild allocates nothing.
+    pub fn rebuild(&mut self, points: &[Vec3], radius: f32) {
+        assert!(
+            points.len() < u32::MAX as usize,
+            "fewer than u32::MAX points"
+        );
+        self.radius = radius;
+        self.radius_sq = radius * radius;
+        self.inv_cell = 1.0 / radius;
+        self.reach = radius * (1.0 + 1e-6);
+        let n = points.len();
+        self.xs.clear();
+        self.ys.clear();
+        self.zs.clear();
+        self.indices.clear();
+        self.table.clear();
+        if n == 0 {
+            return;
         }
-        if let Some(&last) = keys.last() {
-            cells.push((last >> 32, keys.len() as u32));
+        let bits = self.fit_key_space(points);
+        if bits <= 32 {
+            let mut items = std::mem::take(&mut self.narrow);
+            self.arrange(points, &mut items, bits);
+            self.narrow = items;
+        } else {
+            let mut items = std::mem::take(&mut self.wide);
+            self.arrange(points, &mut items, bits);
+            self.wide = items;
         }
-        drop(keys);
-        // Exact capacity: a cell adds the triplet keys its row predecessor did not (x is the low
-        // 32 bits of a cell key, so a gap below 3 within a row shares keys).
-        let key_count: usize = cells
-            .iter()
-            .zip(std::iter::once(None).chain(cells.iter().map(Some)))
-            .map(|(&(cell, _), previous)| match previous {
-                Some(&(previous, _)) if cell >> 32 == previous >> 32 => {
-                    (cell - previous).min(3) as usize
-                }
-                _ => 3,
-            })
-            .sum();
-        let mut triplets: HashMap<CellKey, (u32, u32), FxBuildHasher> =
-            HashMap::with_capacity_and_hasher(key_count, FxBuildHasher);
-        let mut begin = 0;
-        for (cell, end) in cells {
-            // The cell's own points belong to the triplets centred on it and on both x-neighbours;
-            // sorted order makes each triplet's union of ranges one contiguous range.
-            for key in [cell - X, cell, cell + X] {
-                let range = triplets.entry(key).or_insert((begin, end));
-                range.0 = range.0.min(begin);
-                range.1 = range.1.max(end);
-            }
-            begin = end;
-        }
-        debug_assert_eq!(triplets.len(), key_count);
-        HashGrid {
-            radius,
-            radius_sq: radius * radius,
-            inv_cell,
-            xs,
-            ys,
-            zs,
-            indices,
-            triplets,
-        }
+        self.fill_table();
     }
 
     pub fn radius(&self) -> f32 {
@@ -132,7 +138,8 @@ impl HashGrid {
     }
 
     /// Calls `visit(index, distance_squared)` for every point within the radius of `q`
-    /// (distance <= radius), with `index` into the `points` the grid was built from.
+    /// (distance <= radius), with `index` into the `points` the grid was built from, in the
+    /// order of rows (z, y), then cells along x, then indices: an order of the results alone.
     #[inline]
     pub fn query(&self, q: Vec3, mut visit: impl FnMut(usize, f32)) {
         self.query_slots(q, |slot, d2| visit(self.indices[slot] as usize, d2));
@@ -142,27 +149,227 @@ impl HashGrid {
     /// order.
     #[inline]
     pub fn query_slots(&self, q: Vec3, mut visit: impl FnMut(usize, f32)) {
-        let centre = cell_key(q, self.inv_cell);
-        // All lookups first: their cache misses, and those of the ranges' first points, overlap
-        // instead of each waiting for the previous range's scan.
-        let ranges = [
-            centre - Z - Y,
-            centre - Z,
-            centre - Z + Y,
-            centre - Y,
-            centre,
-            centre + Y,
-            centre + Z - Y,
-            centre + Z,
-            centre + Z + Y,
-        ]
-        .map(|row| {
-            self.triplets
-                .get(&row)
-                .map_or(0..0, |&(b, e)| b as usize..e as usize)
-        });
-        for range in ranges {
-            self.scan(range, q, &mut visit);
+        let Some((lo, hi)) = self.cell_bounds(q) else {
+            return;
+        };
+        let (y, z) = (self.stride_y, self.stride_z);
+        let key = |x: i64, y: i64, z: i64| self.key([x, y, z]);
+        if (0..3).all(|axis| hi[axis] - lo[axis] <= 2) {
+            // The sphere is inside 3 x 3 x 3 cells: the triplets of 9 rows. All lookups
+            // first: their cache misses, and those of the ranges' first points, overlap
+            // instead of each waiting for the previous range's scan.
+            let first = key(lo[0] + 1, lo[1], lo[2]);
+            let ranges = [
+                first,
+                first + y,
+                first + 2 * y,
+                first + z,
+                first + z + y,
+                first + z + 2 * y,
+                first + 2 * z,
+                first + 2 * z + y,
+                first + 2 * z + 2 * y,
+            ]
+            .map(|row| self.lookup(row));
+            for range in ranges {
+                self.scan(range, q, &mut visit);
+            }
+        } else {
+            // A sphere touching four cells along an axis (its centre within rounding of a
+            // cell face): disjoint triplets cover each row.
+            for z in lo[2]..=hi[2] {
+                for y in lo[1]..=hi[1] {
+                    for x in (lo[0] + 1..=hi[0] + 1).step_by(3) {
+                        self.scan(self.lookup(key(x, y, z)), q, &mut visit);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The range of the triplet `key`, empty if no point lies in it.
+    #[inline]
+    fn lookup(&self, key: u64) -> std::ops::Range<usize> {
+        let mask = self.table.len() - 1;
+        let mut slot = self.slot_of(key);
+        loop {
+            let s = self.table[slot];
+            if s.key == key {
+                return s.begin as usize..s.end as usize;
+            }
+            if s.key == EMPTY.key {
+                return 0..0;
+            }
+            slot = (slot + 1) & mask;
+        }
+    }
+
+    /// Fibonacci hashing: the top bits of the key times 2^64 / phi, which spreads runs of
+    /// consecutive keys (the triplets of a row) evenly over the table.
+    #[inline]
+    fn slot_of(&self, key: u64) -> usize {
+        (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> self.shift) as usize
+    }
+
+    /// The cells, as offsets from `low`, that every point within the radius of `q` lies in:
+    /// those of `q -+ reach` per axis, by the points' own (monotone) cell function. The
+    /// distance test accepts a point up to a few ulps beyond the radius, and `reach` is a
+    /// little longer still, so a point on a cell face of the sphere's box is never missed.
+    /// `None` when no point's cell is in them.
+    #[inline]
+    fn cell_bounds(&self, q: Vec3) -> Option<([i64; 3], [i64; 3])> {
+        if self.table.is_empty() {
+            return None;
+        }
+        let (mut lo, mut hi) = ([0; 3], [0; 3]);
+        for axis in 0..3 {
+            let span = self.span[axis];
+            let below = cell(q[axis] - self.reach, self.inv_cell) - self.low[axis];
+            let above = cell(q[axis] + self.reach, self.inv_cell) - self.low[axis];
+            // Beyond the span limit the last cell holds all further points.
+            if above < 0 || (below > span && span < SPAN_LIMIT) {
+                return None;
+            }
+            lo[axis] = below.clamp(0, span);
+            hi[axis] = above.min(span);
+        }
+        Some((lo, hi))
+    }
+
+    /// The key of the cell at offsets `cell` from `low`, each in 0 ..= span + 2.
+    #[inline]
+    fn key(&self, cell: [i64; 3]) -> u64 {
+        let padded = |axis: usize| (cell[axis] + 2) as u64;
+        padded(0) + padded(1) * self.stride_y + padded(2) * self.stride_z
+    }
+
+    /// The lowest cell and the span per axis (cells are monotone in the coordinate, so they
+    /// are the cells of the bounding box's corners), and the key strides: coordinates padded
+    /// by two on each side, so the triplet keys of any cell and a query's neighbour rows stay
+    /// inside the key space without wrapping into another row. Returns the key bits in use.
+    fn fit_key_space(&mut self, points: &[Vec3]) -> u32 {
+        let (min, max) = points
+            .par_iter()
+            .fold(
+                || (Vec3::INFINITY, Vec3::NEG_INFINITY),
+                |(min, max), &p| (min.min(p), max.max(p)),
+            )
+            .reduce(
+                || (Vec3::INFINITY, Vec3::NEG_INFINITY),
+                |(a, b), (c, d)| (a.min(c), b.max(d)),
+            );
+        for axis in 0..3 {
+            self.low[axis] = cell(min[axis], self.inv_cell);
+            self.span[axis] =
+                (cell(max[axis], self.inv_cell) - self.low[axis]).clamp(0, SPAN_LIMIT);
+        }
+        let width = |axis: usize| self.span[axis] as u64 + 5;
+        self.stride_y = width(0);
+        self.stride_z = width(0) * width(1);
+        let top_key = width(2) * self.stride_z - 1;
+        u64::BITS - top_key.leading_zeros()
+    }
+
+    /// Sorts the points by cell key, stably (so by cell, then index), copies them into cell
+    /// order and finds the distinct cells.
+    fn arrange<T: Item>(&mut self, points: &[Vec3], [items, scratch]: &mut [Vec<T>; 2], bits: u32) {
+        let n = points.len();
+        items.resize(n, T::default());
+        let grid = &*self;
+        items
+            .par_chunks_mut(CHUNK)
+            .zip(points.par_chunks(CHUNK))
+            .enumerate()
+            .for_each(|(chunk, (items, points))| {
+                for (i, (item, &p)) in items.iter_mut().zip(points).enumerate() {
+                    *item = T::new(grid.key_of(p), (chunk * CHUNK + i) as u32);
+                }
+            });
+        radix_sort(items, scratch, &mut self.histograms, bits);
+
+        // One pass gathers every point once (each in its own cache line, in random order).
+        self.xs.resize(n, 0.0);
+        self.ys.resize(n, 0.0);
+        self.zs.resize(n, 0.0);
+        self.indices.resize(n, 0);
+        items
+            .par_chunks(CHUNK)
+            .zip(self.xs.par_chunks_mut(CHUNK))
+            .zip(self.ys.par_chunks_mut(CHUNK))
+            .zip(self.zs.par_chunks_mut(CHUNK))
+            .zip(self.indices.par_chunks_mut(CHUNK))
+            .for_each(|((((items, xs), ys), zs), indices)| {
+                for (i, item) in items.iter().enumerate() {
+                    let index = item.index();
+                    let p = points[index as usize];
+                    (xs[i], ys[i], zs[i], indices[i]) = (p.x, p.y, p.z, index);
+                }
+            });
+
+        self.cells.clear();
+        for (i, pair) in items.windows(2).enumerate() {
+            if pair[0].key() != pair[1].key() {
+                self.cells.push((pair[0].key(), i as u32 + 1));
+            }
+        }
+        if let Some(last) = items.last() {
+            self.cells.push((last.key(), n as u32));
+        }
+    }
+
+    /// The key of the cell of a point. Offsets are clamped below too: a NaN coordinate lands
+    /// in a valid cell, and no distance test accepts it.
+    #[inline]
+    fn key_of(&self, p: Vec3) -> u64 {
+        let padded = |axis: usize| {
+            ((cell(p[axis], self.inv_cell) - self.low[axis]).clamp(0, self.span[axis]) + 2) as u64
+        };
+        padded(0) + padded(1) * self.stride_y + padded(2) * self.stride_z
+    }
+
+    /// Inserts every triplet once, in key order: the triplet centred on key t spans the cells
+    /// with keys t - 1 ..= t + 1, consecutive in `cells` (sorted order makes their union one
+    /// contiguous range; padding keeps other rows' cells out of it).
+    fn fill_table(&mut self) {
+        let cells = &self.cells;
+        // A cell adds the triplets its predecessor's did not: a gap below 3 shares keys.
+        let count: usize = cells
+            .iter()
+            .zip(std::iter::once(None).chain(cells.iter().map(Some)))
+            .map(|(&(cell, _), previous)| match previous {
+                Some(&(previous, _)) => (cell - previous).min(3) as usize,
+                None => 3,
+            })
+            .sum();
+        // Load at most two thirds: a miss, the commonest lookup on surfaces, ends after a few
+        // probes in one or two cache lines.
+        let capacity = (count + count / 2).next_power_of_two().max(16);
+        self.shift = u64::BITS - capacity.trailing_zeros();
+        self.table.resize(capacity, EMPTY);
+        let mask = capacity - 1;
+        // Cells [first, last) have keys in t - 1 ..= t + 1 for the current triplet t.
+        let (mut first, mut last) = (0, 0);
+        let mut previous = 0;
+        for &(cell, _) in cells {
+            for t in [cell - 1, cell, cell + 1] {
+                if t <= previous {
+                    continue;
+                }
+                previous = t;
+                while cells[first].0 < t - 1 {
+                    first += 1;
+                }
+                while last < cells.len() && cells[last].0 <= t + 1 {
+                    last += 1;
+                }
+                let begin = if first == 0 { 0 } else { cells[first - 1].1 };
+                let end = cells[last - 1].1;
+                let mut slot = (t.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> self.shift) as usize;
+                while self.table[slot].key != EMPTY.key {
+                    slot = (slot + 1) & mask;
+                }
+                self.table[slot] = Slot { key: t, begin, end };
+            }
         }
     }
 
@@ -201,22 +408,89 @@ impl HashGrid {
     }
 }
 
-/// Key of the cell of a point (000 eq. 2.87), floored so negative coordinates are right, and
-/// clamped so far-away points cannot overflow the key or its neighbours'.
-#[inline]
-fn cell_key(p: Vec3, inv_cell: f32) -> CellKey {
-    const LIMIT: f32 = (1u32 << 30) as f32;
-    let axis = |v: f32| {
-        let v = v.clamp(-LIMIT, LIMIT);
-        // Floor by truncation and correction: without SSE4.1, f32::floor is a library call.
-        let truncated = v as i32;
-        let floor = truncated - i32::from(truncated as f32 > v);
-        (floor as u32 ^ (1 << 31)) as CellKey
-    };
-    let c = p * inv_cell;
-    axis(c.z) * Z + axis(c.y) * Y + axis(c.x) * X
+/// A cell key and a point index packed into one integer (key above, index in the low 32 bits),
+/// so the sort moves one value per point.
+trait Item: Copy + Default + Send + Sync {
+    fn new(key: u64, index: u32) -> Self;
+    fn key(self) -> u64;
+    fn index(self) -> u32;
 }
 
+impl Item for u64 {
+    fn new(key: u64, index: u32) -> Self {
+        key << 32 | u64::from(index)
+    }
+    fn key(self) -> u64 {
+        self >> 32
+    }
+    fn index(self) -> u32 {
+        self as u32
+    }
+}
+
+impl Item for u128 {
+    fn new(key: u64, index: u32) -> Self {
+        u128::from(key) << 32 | u128::from(index)
+    }
+    fn key(self) -> u64 {
+        (self >> 32) as u64
+    }
+    fn index(self) -> u32 {
+        self as u32
+    }
+}
+
+/// Sorts `items` stably by key: a least significant digit radix sort over the `bits` key bits
+/// in use, skipping digits all keys share; `scratch` and `histograms` are its buffers.
+fn radix_sort<T: Item>(
+    items: &mut Vec<T>,
+    scratch: &mut Vec<T>,
+    histograms: &mut Vec<u32>,
+    bits: u32,
+) {
+    let n = items.len();
+    let passes = bits.max(1).div_ceil(DIGIT_BITS);
+    let digit_bits = bits.max(1).div_ceil(passes);
+    let buckets = 1usize << digit_bits;
+    let mask = buckets as u64 - 1;
+    histograms.clear();
+    histograms.resize(passes as usize * buckets, 0);
+    for item in items.iter() {
+        let key = item.key();
+        for (pass, histogram) in histograms.chunks_exact_mut(buckets).enumerate() {
+            histogram[((key >> (pass as u32 * digit_bits)) & mask) as usize] += 1;
+        }
+    }
+    scratch.resize(n, T::default());
+    for (pass, histogram) in histograms.chunks_exact_mut(buckets).enumerate() {
+        if histogram.iter().any(|&count| count as usize == n) {
+            continue;
+        }
+        // Counts to the first position of each bucket.
+        let mut sum = 0;
+        for count in histogram.iter_mut() {
+            (*count, sum) = (sum, sum + *count);
+        }
+        let shift = pass as u32 * digit_bits;
+        for &item in items.iter() {
+            let bucket = &mut histogram[((item.key() >> shift) & mask) as usize];
+            scratch[*bucket as usize] = item;
+            *bucket += 1;
+        }
+        std::mem::swap(items, scratch);
+    }
+}
+
+/// The world-grid cell of a coordinate (000 eq. 2.87), floored so negative coordinates are
+/// right, clamped so far-away points cannot overflow; monotone in `v`, so a point within one
+/// cell side of another lies in a neighbouring cell or the same.
+#[inline]
+fn cell(v: f32, inv_cell: f32) -> i64 {
+    let v = (v * inv_cell).clamp(-CELL_LIMIT, CELL_LIMIT);
+    // Floor by truncation and correction: without SSE4.1, f32::floor is a library call.
+    let truncated = v as i32;
+    i64::from(truncated - i32::from(truncated as f32 > v))
+}
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -294,6 +568,124 @@ mod tests {
             .map(|p| *p + Vec3::new(0.0, 0.0, 0.25 * r))
             .collect();
         check(&points, &queries, r);
+    }
+
+    /// A point set of one of several shapes, with exact duplicates and points on cell faces.
+    fn awkward_points(rng: &mut Rng, n: usize, r: f32) -> Vec<Vec3> {
+        let origin = match rng.next_u32() % 4 {
+            0 => Vec3::ZERO,
+            1 => Vec3::new(-3.5, 2.0, -0.25),
+            // Far from the origin, where coordinates are coarse.
+            2 => Vec3::new(1.0e5, -2.0e5, 3.0e4),
+            _ => Vec3::splat(-7.0e3),
+        };
+        let extent = r * [0.5, 3.0, 20.0, 200.0][(rng.next_u32() % 4) as usize];
+        let mut points: Vec<Vec3> = Vec::with_capacity(n);
+        while points.len() < n {
+            let u = Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let p = match rng.next_u32() % 4 {
+                0 => origin + (u * 2.0 - Vec3::ONE) * extent,
+                // On cell faces, edges and corners.
+                1 => {
+                    let k = ((u * 2.0 - Vec3::ONE) * extent / r).round();
+                    origin + k * r
+                }
+                // An exact copy of an earlier point.
+                2 if !points.is_empty() => points[rng.next_u32() as usize % points.len()],
+                // Flat, as vertices on a wall.
+                _ => origin + Vec3::new(u.x * 2.0 - 1.0, u.y * 2.0 - 1.0, 0.0) * extent,
+            };
+            points.push(p);
+        }
+        points
+    }
+
+    #[test]
+    fn random_sets_exactly_once() {
+        let mut rng = Rng::for_sample(11, 0, 0, Stream::Eye);
+        // One grid rebuilt for every case: stale buffers would show as wrong results.
+        let mut grid = HashGrid::default();
+        for case in 0..300 {
+            let r = [1e-6f32, 1e-3, 0.05, 1.0, 1e3, 1e6][case % 6];
+            let n = [0, 1, 2, 17, 300, 1500][(rng.next_u32() % 6) as usize];
+            let points = awkward_points(&mut rng, n, r);
+            let mut queries = awkward_points(&mut rng, 40, r);
+            queries.extend(points.iter().take(40));
+            grid.rebuild(&points, r);
+            assert_eq!(grid.len(), n);
+            for &q in &queries {
+                let mut found = Vec::new();
+                grid.query(q, |i, d2| {
+                    assert_eq!(d2, (points[i] - q).length_squared());
+                    found.push(i);
+                });
+                found.sort_unstable();
+                assert_eq!(
+                    found,
+                    brute_force(&points, q, r),
+                    "case {case}, query {q}, r {r}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn huge_coordinates_and_radii() {
+        // Beyond the cell clamp and the span limit cells merge: slower, still exact.
+        let points = vec![
+            Vec3::new(3.0e38, -3.0e38, 0.0),
+            Vec3::new(3.0e38, -3.0e38, 0.0),
+            Vec3::new(-1.0e30, 5.0, 1.0e20),
+            Vec3::new(1.0e9, 1.0e9, -1.0e9),
+            Vec3::new(1.0e9 + 128.0, 1.0e9, -1.0e9),
+            Vec3::ZERO,
+            Vec3::new(0.5, 0.0, 0.0),
+        ];
+        for r in [1e-3f32, 1.0, 100.0, 1e10, 1e18] {
+            check(&points, &points, r);
+            check(&points, &[Vec3::splat(1.0e9), Vec3::new(0.25, 0.0, 0.0)], r);
+        }
+    }
+
+    #[test]
+    fn order_independent_of_threads() {
+        let mut rng = Rng::for_sample(5, 0, 0, Stream::Eye);
+        let points = random_points(&mut rng, 50_000, 1);
+        let queries = random_points(&mut rng, 500, 1);
+        let results = |grid: &HashGrid| {
+            let mut out = Vec::new();
+            for &q in &queries {
+                grid.query(q, |i, _| out.push(i));
+            }
+            out
+        };
+        let single = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("thread pool");
+        let one = single.install(|| HashGrid::build(&points, 0.05));
+        let many = HashGrid::build(&points, 0.05);
+        let found = results(&one);
+        assert!(found.len() > 10 * queries.len());
+        assert_eq!(found, results(&many));
+        // Within a row the points come by cell, then by index.
+        let mut grid = HashGrid::default();
+        grid.rebuild(&points, 0.05);
+        let key = |i: usize| {
+            let p = points[i] / 0.05;
+            (p.x.floor() as i64, i)
+        };
+        let q = points[0];
+        let mut row = Vec::new();
+        grid.query(q, |i, _| {
+            let p = points[i] / 0.05;
+            let row_of_q = ((q.y / 0.05).floor(), (q.z / 0.05).floor());
+            if (p.y.floor(), p.z.floor()) == row_of_q {
+                row.push(i);
+            }
+        });
+        assert!(row.len() > 1);
+        assert!(row.windows(2).all(|w| key(w[0]) < key(w[1])));
     }
 
     #[test]

@@ -2,7 +2,7 @@
 //! machine's available memory unless told otherwise), so that a resolution too large for the
 //! machine is refused with a message rather than aborting in an allocation.
 
-use crate::integrator::subpath::LightVertex;
+use crate::integrator::subpath::{LightVertex, MergeVertex};
 use crate::options::{OptionName, Technique};
 use std::fmt;
 use thiserror::Error;
@@ -78,10 +78,16 @@ pub fn estimate(
     let film = pixels.saturating_mul(FILM_BYTES_PER_PIXEL);
     // The merging techniques keep one light sub-path per pixel, its vertices stored twice (the
     // light pass's chunks and their concatenation, both kept from one iteration to the next),
-    // plus the hash grid's 20 bytes per vertex.
+    // once more as the merges' compact copy, their positions, and the hash grid: its sorted
+    // copy and sort buffers (32 bytes per point) and its table (16-byte slots, at most three
+    // per point).
     let light_vertices = if technique.merges() {
         let per_path = (max_path_length as u64).min(roulette as u64 + VERTICES_AFTER_ROULETTE);
-        let per_vertex = 2 * std::mem::size_of::<LightVertex>() as u64 + 20;
+        let per_vertex = 2 * std::mem::size_of::<LightVertex>() as u64
+            + std::mem::size_of::<MergeVertex>() as u64
+            + 12
+            + 32
+            + 48;
         pixels.saturating_mul(per_path).saturating_mul(per_vertex)
     } else {
         0

@@ -101,6 +101,7 @@ struct Buffers {
     positions: Vec<Vec3>,
     /// The light vertices as a density-estimate merge reads them, in the grid's order.
     merge_vertices: Vec<MergeVertex>,
+    grid: HashGrid,
 }
 
 /// What the eye sub-paths of one iteration share.
@@ -771,6 +772,7 @@ impl Integrator for VertexCm<'_> {
             light,
             positions,
             merge_vertices,
+            grid,
         } = &mut buffers;
         light.refill(chunks, frame, &mut stats);
         self.stored_vertices = light.vertices.len();
@@ -778,9 +780,12 @@ impl Integrator for VertexCm<'_> {
         if self.modes.vm {
             positions.par_extend(light.vertices.par_iter().map(|v| v.position));
         }
-        let grid = self.modes.vm.then(|| HashGrid::build(positions, w.radius));
+        if self.modes.vm {
+            grid.rebuild(positions, w.radius);
+        }
+        let grid = self.modes.vm.then_some(&*grid);
         merge_vertices.clear();
-        if let (Some(grid), Gather::Density) = (&grid, self.modes.gather) {
+        if let (Some(grid), Gather::Density) = (grid, self.modes.gather) {
             let vertices = &light.vertices;
             merge_vertices.par_extend(
                 grid.indices()
@@ -793,7 +798,7 @@ impl Integrator for VertexCm<'_> {
             w,
             iteration,
             light,
-            grid: grid.as_ref(),
+            grid,
             merge_vertices,
         };
         let eye_stats = frame
