@@ -14,6 +14,9 @@ pub(super) struct Phong {
     kd: Rgb,
     ks: Rgb,
     exponent: f32,
+    /// The exponent when it is a whole number (as most scenes' are): `powi`'s few multiplies
+    /// then replace `powf`, which the merge loop and every BSDF evaluation would pay.
+    whole_exponent: Option<i32>,
     /// Probability of sampling the diffuse lobe.
     pub(super) diffuse_probability: f32,
 }
@@ -22,10 +25,14 @@ impl Phong {
     pub(super) fn new(kd: Rgb, ks: Rgb, exponent: f32) -> Self {
         let (d, s) = (kd.average(), ks.average());
         let diffuse_probability = if d + s > 0.0 { d / (d + s) } else { 1.0 };
+        // A round trip through i32 (two conversion instructions; `fract` would be a libm call).
+        let whole = exponent as i32;
+        let whole_exponent = (whole as f32 == exponent).then_some(whole);
         Phong {
             kd,
             ks,
             exponent,
+            whole_exponent,
             diffuse_probability,
         }
     }
@@ -37,7 +44,10 @@ impl Phong {
         }
         // cos(alpha) is symmetric in wo and wi, so one value serves both pdfs.
         let cos_alpha = reflect_local(wo).dot(wi).max(0.0);
-        let lobe = cos_alpha.powf(self.exponent);
+        let lobe = match self.whole_exponent {
+            Some(n) => cos_alpha.powi(n),
+            None => cos_alpha.powf(self.exponent),
+        };
         let f = self.kd * FRAC_1_PI + self.ks * ((self.exponent + 2.0) * 0.5 * FRAC_1_PI * lobe);
         let specular_pdf = power_cosine_pdf(cos_alpha, lobe, self.exponent);
         let pd = self.diffuse_probability;
