@@ -2,6 +2,9 @@
 //! reported (the report opened in headless Chromium); `--slurm` scripts run by hand; bad
 //! plans refused.
 
+mod common;
+
+use common::browser::headless_chromium;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -333,23 +336,8 @@ fn check_in_chromium(report: &Path) {
     let index = report.join("index.html");
     let url = format!("file://{}", index.display());
     let profile = tempfile::tempdir().unwrap();
-    // Bounded, so that a Chromium that hangs fails the test (exit status 124) instead of
-    // holding up the suite; `timeout` ends its whole process group.
     let chromium = |extra: &[&str]| {
-        Command::new("timeout")
-            .args(["--kill-after=5", "120", "chromium"])
-            .args([
-                "--headless",
-                "--no-sandbox",
-                "--disable-gpu",
-                "--disable-quic",
-                "--no-first-run",
-                "--disable-background-networking",
-                "--disable-component-update",
-                "--disable-sync",
-                "--window-size=1280,2400",
-            ])
-            .arg(format!("--user-data-dir={}", profile.path().display()))
+        headless_chromium(Path::new("chromium"), "120", "1280,2400", profile.path())
             .args(extra)
             .arg(&url)
             .output()

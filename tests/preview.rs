@@ -4,6 +4,9 @@
 //! The browser tests need `chromium` (scripts/setup-debian installs it) and skip, saying so,
 //! without it.
 
+mod common;
+
+use common::browser::headless_chromium;
 use std::io::{BufRead, BufReader, Write};
 use std::net::{SocketAddr, TcpStream};
 use std::path::{Path, PathBuf};
@@ -97,30 +100,9 @@ const CHROMIUM_LIMIT: &str = "60";
 /// Runs headless Chromium on `url` with a fresh profile and `mode` (`--dump-dom` or
 /// `--screenshot=...`). Virtual time stands still while a request is open, so a budget of
 /// `budget_ms` lets the page's timers run that long however long the server takes to answer.
-///
-/// Without `--run-all-compositor-stages-before-draw` a screenshot taken when the budget runs
-/// out waits, in about half the runs, for a frame that never comes if the page was still
-/// updating (any page whose fetches take real time, not only this one). `timeout` runs Chromium
-/// in a process group of its own and ends all of it, renderers included.
 fn headless(browser: &Path, url: &str, mode: &str, budget_ms: u32) -> String {
     let profile = tempfile::tempdir().unwrap();
-    let output = Command::new("timeout")
-        .args(["--kill-after=5", CHROMIUM_LIMIT])
-        .arg(browser)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--disable-quic",
-            "--no-first-run",
-            "--disable-background-networking",
-            "--disable-component-update",
-            "--disable-sync",
-            "--hide-scrollbars",
-            "--run-all-compositor-stages-before-draw",
-            "--window-size=1280,900",
-        ])
-        .arg(format!("--user-data-dir={}", profile.path().display()))
+    let output = headless_chromium(browser, CHROMIUM_LIMIT, "1280,900", profile.path())
         .arg(format!("--virtual-time-budget={budget_ms}"))
         .arg(mode)
         .arg(url)

@@ -779,8 +779,6 @@ impl Integrator for VertexCm<'_> {
         positions.clear();
         if self.modes.vm {
             positions.par_extend(light.vertices.par_iter().map(|v| v.position));
-        }
-        if self.modes.vm {
             grid.rebuild(positions, w.radius);
         }
         let grid = self.modes.vm.then_some(&*grid);

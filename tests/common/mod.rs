@@ -2,6 +2,8 @@
 //! the mean and the variance of the mean, so bounds come from the noise itself.
 #![allow(dead_code)]
 
+pub mod browser;
+
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
 use vmerge::integrator::{self, RenderContext};
