@@ -466,16 +466,22 @@ fn view(files: &[PathBuf], address: SocketAddr) -> Result<()> {
     Ok(())
 }
 
-fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> Result<()> {
+/// A stop flag raised by the first Ctrl-C or termination signal, so the render (or the batch's
+/// current cell) finishes its iteration and writes its image; a second signal quits at once.
+fn stop_on_signal() -> Result<vmerge::render::StopFlag> {
     let flag = vmerge::render::StopFlag::default();
     let handler_flag = flag.clone();
     ctrlc::set_handler(move || {
-        // The first signal finishes the iteration and writes the image; a second one quits.
         if handler_flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
             std::process::exit(130);
         }
     })
     .context("installing the signal handler")?;
+    Ok(flag)
+}
+
+fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> Result<()> {
+    let flag = stop_on_signal()?;
     let bar = indicatif::ProgressBar::new(stop.iterations.unwrap_or(0));
     bar.set_style(
         indicatif::ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos} it {msg}")
@@ -631,15 +637,7 @@ fn batch(args: BatchArgs) -> Result<()> {
                 }
             } else {
                 set_threads(plan.threads)?;
-                let flag = vmerge::render::StopFlag::default();
-                let handler_flag = flag.clone();
-                ctrlc::set_handler(move || {
-                    // The first signal ends the current cell's iteration and writes it.
-                    if handler_flag.swap(true, std::sync::atomic::Ordering::SeqCst) {
-                        std::process::exit(130);
-                    }
-                })
-                .context("installing the signal handler")?;
+                let flag = stop_on_signal()?;
                 let mut bar = batch::ProgressBar::default();
                 let ran = batch::run(&plan, args.accel, &flag, &mut |e| bar.show(e))?;
                 bar.finish();

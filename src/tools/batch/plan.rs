@@ -133,25 +133,29 @@ impl Reader<'_> {
             .ok_or_else(|| self.error(entry, format!("expected a whole number >= 0, found {v}")))
     }
 
-    /// A number or a list of numbers.
-    fn numbers(&self, entry: &str, v: &toml::Value) -> Result<Vec<f64>, BatchError> {
+    /// One value or a non-empty list of values, each read by `one`.
+    fn one_or_list<T>(
+        &self,
+        entry: &str,
+        v: &toml::Value,
+        one: impl Fn(&Self, &str, &toml::Value) -> Result<T, BatchError>,
+    ) -> Result<Vec<T>, BatchError> {
         match v {
             toml::Value::Array(items) if !items.is_empty() => {
-                items.iter().map(|x| self.number(entry, x)).collect()
+                items.iter().map(|x| one(self, entry, x)).collect()
             }
             toml::Value::Array(_) => Err(self.error(entry, "an empty list")),
-            x => Ok(vec![self.number(entry, x)?]),
+            x => Ok(vec![one(self, entry, x)?]),
         }
     }
 
+    /// A number or a list of numbers.
+    fn numbers(&self, entry: &str, v: &toml::Value) -> Result<Vec<f64>, BatchError> {
+        self.one_or_list(entry, v, Self::number)
+    }
+
     fn strings(&self, entry: &str, v: &toml::Value) -> Result<Vec<String>, BatchError> {
-        match v {
-            toml::Value::Array(items) if !items.is_empty() => {
-                items.iter().map(|x| self.string(entry, x)).collect()
-            }
-            toml::Value::Array(_) => Err(self.error(entry, "an empty list")),
-            x => Ok(vec![self.string(entry, x)?]),
-        }
+        self.one_or_list(entry, v, Self::string)
     }
 
     fn budget(&self, entry: &str, table: &toml::Table) -> Result<Option<Budget>, BatchError> {
