@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 use vmerge::accel::AccelKind;
-use vmerge::options::{DensityMis, OptionName, RenderOptions, Technique};
+use vmerge::options::{DensityMis, OptionName, RenderOptions, SamplerKind, Technique};
 
 /// The options' defaults, as the library writes them.
 const DEFAULT: RenderOptions = RenderOptions::DEFAULT;
@@ -194,6 +194,9 @@ struct TechniqueArgs {
     /// Leave out paths of fewer segments (3 drops direct light).
     #[arg(long, default_value_t = DEFAULT.min_path_length)]
     min_path_length: u32,
+    /// The numbers sub-paths are built from.
+    #[arg(long, value_parser = sampler_parser(), default_value = DEFAULT.sampler.name())]
+    sampler: SamplerKind,
 }
 
 #[derive(Args)]
@@ -242,6 +245,17 @@ fn density_mis_parser() -> impl TypedValueParser<Value = DensityMis> {
             .into_iter()
             .find(|d| d.name() == name)
             .ok_or("no such heuristic")
+    })
+}
+
+/// The samplers by name.
+fn sampler_parser() -> impl TypedValueParser<Value = SamplerKind> {
+    let names = SamplerKind::ALL.map(|k| PossibleValue::new(k.name()).help(k.description()));
+    PossibleValuesParser::new(names).try_map(|name| {
+        SamplerKind::ALL
+            .into_iter()
+            .find(|k| k.name() == name)
+            .ok_or("no such sampler")
     })
 }
 
@@ -385,6 +399,7 @@ fn render(args: RenderArgs) -> Result<()> {
         no_shading_normals: t.no_shading_normals,
         light_paths: t.light_paths,
         min_path_length: t.min_path_length,
+        sampler: t.sampler,
     };
     let setup = vmerge::render::NewRender {
         scene: args.scene,

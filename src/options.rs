@@ -98,6 +98,34 @@ impl fmt::Display for Technique {
     }
 }
 
+/// Which numbers the sub-paths are built from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum SamplerKind {
+    /// Shuffled, Owen-scrambled 2D Sobol' points per dimension pair.
+    Sobol,
+    /// Independent uniform numbers (PCG32), as SmallVCM and the thesis draw them.
+    Independent,
+}
+
+impl SamplerKind {
+    pub const ALL: [SamplerKind; 2] = [SamplerKind::Sobol, SamplerKind::Independent];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            SamplerKind::Sobol => "sobol",
+            SamplerKind::Independent => "independent",
+        }
+    }
+
+    pub fn description(self) -> &'static str {
+        match self {
+            SamplerKind::Sobol => "randomised quasi-Monte Carlo: shuffled, Owen-scrambled Sobol'",
+            SamplerKind::Independent => "independent uniform random numbers (PCG32)",
+        }
+    }
+}
+
 /// 002's MIS heuristics for density estimates: the merge at x_i counts n_VM / k_i light
 /// sub-paths instead of n_VM, with k_i the expected number of light vertices in its radius.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -178,6 +206,14 @@ pub struct RenderOptions {
     /// direct light, as 000 Fig. 4.3 does).
     #[serde(default)]
     pub min_path_length: u32,
+    /// The numbers sub-paths are built from. Renders written before the choice existed drew
+    /// independent numbers, so that is what a file without it continues with.
+    #[serde(default = "independent")]
+    pub sampler: SamplerKind,
+}
+
+fn independent() -> SamplerKind {
+    SamplerKind::Independent
 }
 
 fn default_density_map_iterations() -> u32 {
@@ -215,6 +251,7 @@ impl RenderOptions {
         no_shading_normals: false,
         light_paths: None,
         min_path_length: 0,
+        sampler: SamplerKind::Sobol,
     };
 
     /// The radius-shrinking exponent a render uses: the given one, 0.75 for the techniques
@@ -395,6 +432,13 @@ pub static RULES: &[OptionRule] = &[
         is_set: |o| o.upg_max_trials != RenderOptions::DEFAULT.upg_max_trials,
         invalid: |o| (o.upg_max_trials == 0).then(|| "0".to_string()),
         expected: "at least 1 trial",
+    },
+    OptionRule {
+        name: "sampler",
+        takes: every,
+        is_set: |o| o.sampler != RenderOptions::DEFAULT.sampler,
+        invalid: never_invalid,
+        expected: "",
     },
     OptionRule {
         name: "no_shading_normals",

@@ -261,6 +261,19 @@ fn wait_for(path: &Path) {
     }
 }
 
+/// Removes a directory that a render keeps writing snapshots into: a snapshot's temporary file
+/// created while the directory is emptied makes one removal fail, so try again.
+fn remove_while_written(dir: &Path) {
+    for _ in 0..50 {
+        match std::fs::remove_dir_all(dir) {
+            Ok(()) => return,
+            Err(e) if e.kind() == std::io::ErrorKind::DirectoryNotEmpty => {}
+            Err(e) => panic!("removing {}: {e}", dir.display()),
+        }
+    }
+    panic!("{} kept being written to", dir.display());
+}
+
 /// The output directory vanishes mid-render: snapshots fail with a warning, the render goes
 /// on, and the final image goes to the temporary directory, which the message names; the exit
 /// code says the image is not where it was asked for.
@@ -273,7 +286,7 @@ fn a_vanished_output_directory_loses_no_render() {
     let output = dir.join("render.exr");
     let child = snapshotting_render(&output, &tmp, "2s");
     wait_for(&output);
-    std::fs::remove_dir_all(&dir).unwrap();
+    remove_while_written(&dir);
     let result = child.wait_with_output().unwrap();
     let stderr = String::from_utf8_lossy(&result.stderr);
     assert_eq!(result.status.code(), Some(1), "{stderr}");
@@ -309,7 +322,7 @@ fn failed_snapshots_are_retried() {
     let output = dir.join("render.exr");
     let child = snapshotting_render(&output, &tmp, "2s");
     wait_for(&output);
-    std::fs::remove_dir_all(&dir).unwrap();
+    remove_while_written(&dir);
     std::thread::sleep(std::time::Duration::from_millis(400));
     std::fs::create_dir(&dir).unwrap();
     let result = child.wait_with_output().unwrap();

@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 use vmerge::accel::{AccelKind, Geometry};
 use vmerge::bsdf::{Material, MaterialKind};
 use vmerge::color::Rgb;
-use vmerge::options::RenderOptions;
 use vmerge::options::Technique;
+use vmerge::options::{RenderOptions, SamplerKind};
 use vmerge::sampling::Rng;
 use vmerge::scene::{
     self, Camera, CameraDesc, FovAxis, LoadOptions, RenderDefaults, Scene, SceneParts,
@@ -376,6 +376,7 @@ fn bulbs_case_agrees_with_mitsuba_with_the_walls_resolved() {
         technique: Technique::Pt,
         resolution: Some([256, 256]),
         seed: 21,
+        sampler: SamplerKind::Independent,
         ..Default::default()
     };
     let stats = render_stats(&scene, &options, 256);

@@ -3,8 +3,8 @@
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
 use vmerge::integrator::{self, RenderContext};
-use vmerge::options::RenderOptions;
 use vmerge::options::Technique;
+use vmerge::options::{RenderOptions, SamplerKind};
 use vmerge::render::render_iterations;
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
@@ -30,6 +30,8 @@ fn furnace_is_one_everywhere() {
     let options = RenderOptions {
         technique: Technique::Pt,
         resolution: Some([width, height]),
+        // Each iteration an independent estimate, as the variances below take it.
+        sampler: SamplerKind::Independent,
         ..Default::default()
     };
     let camera = Camera::new(scene.camera(None).unwrap(), width, height);

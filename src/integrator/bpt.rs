@@ -21,7 +21,7 @@ use crate::accel::Ray;
 use crate::bsdf::{Bsdf, Normals, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
-use crate::sampling::{Rng, Stream};
+use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -166,9 +166,9 @@ impl<'a> Bpt<'a> {
         state: &mut SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
-        rng: &mut Rng,
+        rng: &mut Sampler,
     ) -> Option<()> {
-        let s = bsdf.sample([rng.next_f32(), rng.next_f32(), rng.next_f32()])?;
+        let s = bsdf.sample(rng.next_choice_2d())?;
         if state.index >= self.ctx.options.roulette {
             let q = bsdf.continuation_probability();
             if rng.next_f32() >= q {
@@ -198,7 +198,7 @@ impl<'a> Bpt<'a> {
     /// connections to the camera (t = 1).
     fn trace_light_path(
         &self,
-        rng: &mut Rng,
+        rng: &mut Sampler,
         vertices: &mut Vec<LightVertex>,
         splats: &mut Vec<(usize, Rgb)>,
         stats: &mut IterationStats,
@@ -236,6 +236,7 @@ impl<'a> Bpt<'a> {
         };
         let max_length = self.ctx.max_path_length();
         loop {
+            rng.start_vertex(state.index);
             stats.rays += 1;
             let Some(hit) = self.scene().intersect(&state.ray) else {
                 break;
@@ -343,7 +344,7 @@ impl<'a> Bpt<'a> {
         state: &SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
-        rng: &mut Rng,
+        rng: &mut Sampler,
         stats: &mut IterationStats,
     ) -> Rgb {
         let sample = LightSample::draw(self.scene(), hit, bsdf, rng);
@@ -403,7 +404,7 @@ impl<'a> Bpt<'a> {
     /// Traces the eye sub-path of `pixel` against its light sub-path `light_path`.
     fn trace_eye_path(
         &self,
-        rng: &mut Rng,
+        rng: &mut Sampler,
         pixel: usize,
         light_path: &[LightVertex],
         stats: &mut IterationStats,
@@ -430,6 +431,7 @@ impl<'a> Bpt<'a> {
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
         loop {
+            rng.start_vertex(state.index);
             stats.rays += 1;
             let hit = self.scene().intersect(&state.ray);
             state.arrive(self.power, hit.as_ref());
@@ -466,7 +468,7 @@ impl<'a> Bpt<'a> {
 
 impl Integrator for Bpt<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
-        let seed = self.ctx.options.seed;
+        let (seed, sampler) = (self.ctx.options.seed, self.ctx.options.sampler);
         let pixels = frame.len();
         let trace_light = self.filter.needs_light_path();
         let chunks: Vec<Chunk> = (0..pixels)
@@ -479,8 +481,13 @@ impl Integrator for Bpt<'_> {
                 let colors = (start..(start + CHUNK).min(pixels))
                     .map(|pixel| {
                         if trace_light {
-                            let mut rng =
-                                Rng::for_sample(seed, iteration, pixel as u64, Stream::Light);
+                            let mut rng = Sampler::light(
+                                sampler,
+                                seed,
+                                iteration,
+                                pixel as u64,
+                                pixels as u64,
+                            );
                             self.trace_light_path(
                                 &mut rng,
                                 &mut light_path,
@@ -488,7 +495,7 @@ impl Integrator for Bpt<'_> {
                                 &mut stats,
                             );
                         }
-                        let mut rng = Rng::for_sample(seed, iteration, pixel as u64, Stream::Eye);
+                        let mut rng = Sampler::eye(sampler, seed, iteration, pixel as u64);
                         self.trace_eye_path(&mut rng, pixel, &light_path, &mut stats)
                     })
                     .collect();

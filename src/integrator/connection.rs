@@ -5,7 +5,7 @@ use super::mis::{ConnectionPdfs, LightSamplePdfs};
 use crate::bsdf::{Bsdf, BsdfEval};
 use crate::color::Rgb;
 use crate::light::{Illumination, Light};
-use crate::sampling::Rng;
+use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
 
@@ -23,7 +23,12 @@ pub struct LightSample<'s> {
 impl<'s> LightSample<'s> {
     /// Draws the pick and the point (always three numbers, so the streams of every technique
     /// stay aligned) and returns the sample when it can contribute.
-    pub fn draw(scene: &'s Scene, hit: &SurfaceHit, bsdf: &Bsdf, rng: &mut Rng) -> Option<Self> {
+    pub fn draw(
+        scene: &'s Scene,
+        hit: &SurfaceHit,
+        bsdf: &Bsdf,
+        rng: &mut Sampler,
+    ) -> Option<Self> {
         let u_pick = rng.next_f32();
         let u = rng.next_2d();
         let (index, pick) = scene.lights.pick(u_pick)?;

@@ -7,7 +7,7 @@ use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
-use crate::sampling::{mis_power, Rng, Stream};
+use crate::sampling::{mis_power, Sampler};
 use crate::scene::SurfaceHit;
 use rayon::prelude::*;
 
@@ -28,7 +28,7 @@ impl<'a> PathTracer<'a> {
     }
 
     /// Radiance arriving at the camera through raster point `(x, y)`, and the rays traced.
-    fn radiance(&self, mut ray: Ray, rng: &mut Rng) -> (Rgb, u64) {
+    fn radiance(&self, mut ray: Ray, rng: &mut Sampler) -> (Rgb, u64) {
         let scene = self.ctx.scene;
         let max_length = self.ctx.max_path_length();
         let roulette = self.ctx.options.roulette;
@@ -44,6 +44,7 @@ impl<'a> PathTracer<'a> {
         // Segments of the path so far, camera included.
         let mut length = 1u32;
         loop {
+            rng.start_vertex(length);
             rays += 1;
             let Some(hit) = scene.intersect(&ray) else {
                 if let Some(received) = scene
@@ -75,7 +76,7 @@ impl<'a> PathTracer<'a> {
                 radiance += throughput * light;
                 rays += shadow_rays;
             }
-            let u = [rng.next_f32(), rng.next_f32(), rng.next_f32()];
+            let u = rng.next_choice_2d();
             let Some(sample) = bsdf.sample(u) else {
                 break;
             };
@@ -119,7 +120,7 @@ impl<'a> PathTracer<'a> {
     }
 
     /// Next-event estimation: one light sample, weighted against BSDF sampling.
-    fn sample_light(&self, hit: &SurfaceHit, bsdf: &Bsdf, rng: &mut Rng) -> (Rgb, u64) {
+    fn sample_light(&self, hit: &SurfaceHit, bsdf: &Bsdf, rng: &mut Sampler) -> (Rgb, u64) {
         let scene = self.ctx.scene;
         let Some(ls) = LightSample::draw(scene, hit, bsdf, rng) else {
             return (Rgb::BLACK, 0);
@@ -140,7 +141,7 @@ impl Integrator for PathTracer<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
         let camera = &self.ctx.camera;
         let width = camera.width as usize;
-        let seed = self.ctx.options.seed;
+        let (seed, sampler) = (self.ctx.options.seed, self.ctx.options.sampler);
         let this = &*self;
         frame
             .par_chunks_mut(width)
@@ -149,7 +150,7 @@ impl Integrator for PathTracer<'_> {
                 let mut stats = IterationStats::default();
                 for (x, pixel) in row.iter_mut().enumerate() {
                     let index = (y * width + x) as u64;
-                    let mut rng = Rng::for_sample(seed, iteration, index, Stream::Eye);
+                    let mut rng = Sampler::eye(sampler, seed, iteration, index);
                     let [jx, jy] = rng.next_2d();
                     let ray = camera.generate_ray(x as f32 + jx, y as f32 + jy);
                     let (radiance, rays) = this.radiance(ray, &mut rng);

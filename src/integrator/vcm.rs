@@ -34,7 +34,7 @@ use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::hashgrid::HashGrid;
 use crate::options::{RenderOptions, Technique};
-use crate::sampling::{Rng, Stream};
+use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
 use rayon::prelude::*;
@@ -221,7 +221,7 @@ impl<'a> VertexCm<'a> {
     }
 
     /// Starts a light sub-path (SmallVCM's GenerateLightSample; 001 eqs. 31-33).
-    fn light_sample(&self, w: &VcmWeights, rng: &mut Rng) -> Option<SubPath> {
+    fn light_sample(&self, w: &VcmWeights, rng: &mut Sampler) -> Option<SubPath> {
         let lights = &self.scene().lights;
         let (index, pick) = lights.pick(rng.next_f32())?;
         let light = lights.get(index);
@@ -272,10 +272,10 @@ impl<'a> VertexCm<'a> {
         state: &mut SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
-        rng: &mut Rng,
+        rng: &mut Sampler,
         light_side: bool,
     ) -> Option<()> {
-        let s = bsdf.sample([rng.next_f32(), rng.next_f32(), rng.next_f32()])?;
+        let s = bsdf.sample(rng.next_choice_2d())?;
         if state.path_length >= self.ctx.options.roulette {
             let q = bsdf.continuation_probability();
             if rng.next_f32() >= q {
@@ -322,17 +322,20 @@ impl<'a> VertexCm<'a> {
         index: usize,
         chunk: &mut LightChunk,
     ) {
-        let mut rng = Rng::for_sample(
-            self.ctx.options.seed,
+        let o = self.ctx.options;
+        let mut rng = Sampler::light(
+            o.sampler,
+            o.seed,
             iteration,
             index as u64,
-            Stream::Light,
+            self.light_paths() as u64,
         );
         let Some(mut state) = self.light_sample(w, &mut rng) else {
             return;
         };
         let max_length = self.ctx.max_path_length();
         loop {
+            rng.start_vertex(state.path_length);
             chunk.stats.rays += 1;
             let Some(hit) = self.scene().intersect(&state.ray) else {
                 break;
@@ -515,7 +518,7 @@ impl<'a> VertexCm<'a> {
         state: &SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
-        rng: &mut Rng,
+        rng: &mut Sampler,
         stats: &mut IterationStats,
     ) -> Rgb {
         if self.too_short(state.path_length + 1) {
@@ -656,7 +659,7 @@ impl<'a> VertexCm<'a> {
             vertices: &pass.light.vertices,
             grid,
         });
-        let mut rng = Rng::for_sample(seed, pass.iteration, pixel as u64, Stream::Eye);
+        let mut rng = Sampler::eye(self.ctx.options.sampler, seed, pass.iteration, pixel as u64);
         let mut tentative = Tentative::new(seed, pass.iteration, pixel);
         let width = camera.width as usize;
         let [jx, jy] = rng.next_2d();
@@ -677,6 +680,7 @@ impl<'a> VertexCm<'a> {
         let mut color = Rgb::BLACK;
         let mut prev: Option<EyeVertex> = None;
         loop {
+            rng.start_vertex(state.path_length);
             stats.rays += 1;
             let Some(hit) = self.scene().intersect(&state.ray) else {
                 color += state.throughput * self.emission(w, &state, None);

@@ -7,8 +7,8 @@ pub mod browser;
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
 use vmerge::integrator::{self, RenderContext};
-use vmerge::options::RenderOptions;
 use vmerge::options::Technique;
+use vmerge::options::{RenderOptions, SamplerKind};
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
 pub fn load(name: &str) -> Scene {
@@ -23,11 +23,15 @@ pub fn load(name: &str) -> Scene {
 
 /// Options for a square test render. Each technique gets its own seed: renders compared with
 /// each other must be independent, and equal seeds would share the eye paths' random numbers.
+/// The numbers are independent ones, because [`render_stats`] takes each iteration as an
+/// independent estimate; the default Sobol sampler stratifies iterations together, and
+/// tests/sampler.rs checks it with [`render_stats_by_seed`].
 pub fn options(technique: Technique, size: u32) -> RenderOptions {
     RenderOptions {
         technique,
         resolution: Some([size, size]),
         seed: 1000 + technique as u64,
+        sampler: SamplerKind::Independent,
         ..Default::default()
     }
 }
@@ -68,6 +72,12 @@ const BATCHES: usize = 64;
 /// mean and, from BATCHES / 2 batch means, the variance of that mean.
 pub fn render_stats(scene: &Scene, options: &RenderOptions, iterations: u64) -> PixelStats {
     assert!(iterations.is_power_of_two() && iterations >= BATCHES as u64);
+    assert_eq!(
+        options.sampler,
+        SamplerKind::Independent,
+        "batches of iterations are independent only with independent numbers; a Sobol render \
+         is measured over seeds (render_stats_by_seed)"
+    );
     let [w, h] = options.resolution.expect("tests set a resolution");
     let camera = Camera::new(scene.camera(options.camera.as_deref()).unwrap(), w, h);
     let mut integrator = integrator::create(RenderContext {
@@ -104,6 +114,43 @@ pub fn render_stats(scene: &Scene, options: &RenderOptions, iterations: u64) -> 
         }
     }
     pixel_stats(&batches[..BATCHES / 2], batch_size, dropped)
+}
+
+/// Per-pixel statistics from BATCHES / 2 independent renders (seeds `options.seed`,
+/// `options.seed + 1`, ...) of `iterations` iterations each: the batches a randomised
+/// quasi-Monte Carlo render needs, since its iterations are stratified together and are not
+/// independent of each other. Each batch restarts the iteration count, radius included.
+pub fn render_stats_by_seed(scene: &Scene, options: &RenderOptions, iterations: u64) -> PixelStats {
+    let [w, h] = options.resolution.expect("tests set a resolution");
+    let n = (w * h) as usize;
+    let mut frame = vec![Rgb::BLACK; n];
+    let mut dropped = 0;
+    let batches: Vec<Vec<f64>> = (0..(BATCHES / 2) as u64)
+        .map(|k| {
+            let options = RenderOptions {
+                seed: options.seed + k,
+                ..options.clone()
+            };
+            let camera = Camera::new(scene.camera(options.camera.as_deref()).unwrap(), w, h);
+            let mut integrator = integrator::create(RenderContext {
+                scene,
+                camera,
+                options: &options,
+            });
+            let mut batch = vec![0.0f64; n];
+            for iteration in 0..iterations {
+                frame.fill(Rgb::BLACK);
+                dropped += integrator
+                    .render_iteration(iteration, &mut frame)
+                    .dropped_samples;
+                for (b, c) in batch.iter_mut().zip(&frame) {
+                    *b += c.average() as f64;
+                }
+            }
+            batch
+        })
+        .collect();
+    pixel_stats(&batches, iterations, dropped)
 }
 
 /// Mean and variance of the mean from full batches of `batch_size` iterations each.

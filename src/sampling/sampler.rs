@@ -1,0 +1,358 @@
+//! The numbers a path is built from: randomised quasi-Monte Carlo by default, or independent
+//! PCG32 numbers (`--sampler independent`).
+//!
+//! The Sobol sampler gives every 2D draw of a path (pixel jitter, light point, BSDF direction,
+//! ...) its own copy of the 2D Sobol' (0,2)-sequence, shuffled and Owen-scrambled with hashes
+//! of that dimension's seed (Burley 2020, "Practical Hash-based Owen Scrambling", sec. 4-6;
+//! pbrt-v4's `PaddedSobolSampler` is the same design). Every power-of-two prefix of a pixel's
+//! samples is then stratified in each 2D projection (a (0, m, 2)-net), while the dimensions
+//! stay independent of each other, and each sample on its own is uniform in the unit cube: the
+//! estimators stay unbiased whatever order their numbers are drawn in.
+//!
+//! Eye sub-paths form one sequence per pixel over the iterations. Light sub-paths form one
+//! sequence over all iterations (sample `iteration * paths + path`), so with one light path
+//! per pixel of a power-of-two image the paths of every iteration are stratified together.
+
+use super::rng::{mix, Rng, Stream};
+use crate::options::SamplerKind;
+
+/// The source of one sub-path's numbers.
+#[derive(Clone, Debug)]
+pub enum Sampler {
+    Sobol(SobolSample),
+    Independent(Rng),
+}
+
+impl Sampler {
+    /// The eye sub-path of `pixel` in `iteration`.
+    pub fn eye(kind: SamplerKind, seed: u64, iteration: u64, pixel: u64) -> Self {
+        match kind {
+            SamplerKind::Sobol => {
+                Sampler::Sobol(SobolSample::new(seed, Stream::Eye, pixel, iteration))
+            }
+            SamplerKind::Independent => {
+                Sampler::Independent(Rng::for_sample(seed, iteration, pixel, Stream::Eye))
+            }
+        }
+    }
+
+    /// Light sub-path `path` of the `paths` traced in `iteration`.
+    pub fn light(kind: SamplerKind, seed: u64, iteration: u64, path: u64, paths: u64) -> Self {
+        match kind {
+            SamplerKind::Sobol => {
+                let index = iteration.wrapping_mul(paths).wrapping_add(path);
+                Sampler::Sobol(SobolSample::new(seed, Stream::Light, 0, index))
+            }
+            SamplerKind::Independent => {
+                Sampler::Independent(Rng::for_sample(seed, iteration, path, Stream::Light))
+            }
+        }
+    }
+
+    /// Starts the numbers of the sub-path's vertex `vertex` (0: the camera's or the light's
+    /// point). Each vertex draws from its own block of Sobol dimensions, so a draw keeps its
+    /// dimension in every sample whatever was drawn before it on the path (a mirror bounce
+    /// skips light sampling, a short path skips Russian roulette). Independent numbers need no
+    /// such alignment and are left as they are.
+    #[inline]
+    pub fn start_vertex(&mut self, vertex: u32) {
+        if let Sampler::Sobol(s) = self {
+            s.dimension = u64::from(vertex) * DIMENSIONS_PER_VERTEX;
+        }
+    }
+
+    /// Uniform in [0, 1).
+    #[inline]
+    pub fn next_f32(&mut self) -> f32 {
+        match self {
+            Sampler::Sobol(s) => s.next_1d(),
+            Sampler::Independent(rng) => rng.next_f32(),
+        }
+    }
+
+    /// Uniform in [0, 1)^2, the two numbers stratified together.
+    #[inline]
+    pub fn next_2d(&mut self) -> [f32; 2] {
+        match self {
+            Sampler::Sobol(s) => s.next_2d(),
+            Sampler::Independent(rng) => rng.next_2d(),
+        }
+    }
+
+    /// A choice (`[0]`, such as a BSDF's lobe) and a 2D point (`[1]`, `[2]`), as
+    /// a BSDF sample takes them.
+    #[inline]
+    pub fn next_choice_2d(&mut self) -> [f32; 3] {
+        let choice = self.next_f32();
+        let [u, v] = self.next_2d();
+        [choice, u, v]
+    }
+}
+
+/// Draws one vertex may make: a light pick and point, a BSDF lobe and direction, Russian
+/// roulette (5), with room to spare.
+const DIMENSIONS_PER_VERTEX: u64 = 8;
+
+/// One sample of a Sobol sequence: its index and the key that seeds its dimensions.
+#[derive(Clone, Debug)]
+pub struct SobolSample {
+    index: u32,
+    key: u64,
+    dimension: u64,
+}
+
+impl SobolSample {
+    /// Sample `index` of the sequence (`seed`, `stream`, `sequence`). Indices past 2^32 start
+    /// a fresh randomisation rather than repeating points.
+    fn new(seed: u64, stream: Stream, sequence: u64, index: u64) -> Self {
+        let key = mix(seed ^ mix(stream as u64 ^ mix(sequence ^ mix(index >> 32))));
+        SobolSample {
+            index: index as u32,
+            key,
+            dimension: 0,
+        }
+    }
+
+    /// The seeds of the next dimension pair: the shuffle's and the two coordinates' scrambles.
+    #[inline]
+    fn next_seeds(&mut self) -> (u32, u32, u64) {
+        let h = mix(self.key ^ self.dimension.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        self.dimension += 1;
+        (h as u32, (h >> 32) as u32, h)
+    }
+
+    #[inline]
+    fn next_1d(&mut self) -> f32 {
+        let (shuffle, scramble, _) = self.next_seeds();
+        let i = nested_uniform_scramble(self.index, shuffle);
+        // Dimension 0 of Sobol' is the van der Corput sequence, reverse_bits(i); Owen
+        // scrambling it is reverse(permute(reverse(reverse(i)))).
+        to_unit(laine_karras(i, scramble).reverse_bits())
+    }
+
+    #[inline]
+    fn next_2d(&mut self) -> [f32; 2] {
+        let (shuffle, scramble_x, h) = self.next_seeds();
+        let scramble_y = (mix(h) >> 32) as u32;
+        let i = nested_uniform_scramble(self.index, shuffle);
+        [
+            to_unit(laine_karras(i, scramble_x).reverse_bits()),
+            to_unit(nested_uniform_scramble(sobol_dimension_1(i), scramble_y)),
+        ]
+    }
+}
+
+/// A hash permutation of 32-bit words in which every bit is flipped by a function of the bits
+/// below it, so on bit-reversed numbers it is an Owen scramble (Burley 2020, sec. 4, with his
+/// improved constants).
+#[inline]
+fn laine_karras(mut x: u32, seed: u32) -> u32 {
+    x = x.wrapping_add(seed);
+    x ^= x.wrapping_mul(0x6c50_b47c);
+    x ^= x.wrapping_mul(0xb82f_1e52);
+    x ^= x.wrapping_mul(0xc7af_e638);
+    x ^= x.wrapping_mul(0x8d22_f6e6);
+    x
+}
+
+/// Owen scramble of a 32-bit fixed-point number in [0, 1). Applied to a sample index it
+/// shuffles the sequence so that every aligned power-of-two block of it is still a net.
+#[inline]
+fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
+    laine_karras(x.reverse_bits(), seed).reverse_bits()
+}
+
+/// Dimension 1 of Sobol' (generator matrix: Pascal's triangle mod 2), as 32-bit fixed point,
+/// from four byte-indexed tables of the direction numbers.
+#[inline]
+fn sobol_dimension_1(i: u32) -> u32 {
+    let [b0, b1, b2, b3] = i.to_le_bytes();
+    SOBOL_1_BYTES[0][b0 as usize]
+        ^ SOBOL_1_BYTES[1][b1 as usize]
+        ^ SOBOL_1_BYTES[2][b2 as usize]
+        ^ SOBOL_1_BYTES[3][b3 as usize]
+}
+
+/// `SOBOL_1_BYTES[k][b]`: the XOR of the direction numbers of the set bits of byte `k` = `b`.
+static SOBOL_1_BYTES: [[u32; 256]; 4] = sobol_1_byte_tables();
+
+const fn sobol_1_byte_tables() -> [[u32; 256]; 4] {
+    // Direction number j: v_0 = 2^31, v_{j+1} = v_j ^ (v_j >> 1).
+    let mut directions = [0u32; 32];
+    let mut v = 1u32 << 31;
+    let mut j = 0;
+    while j < 32 {
+        directions[j] = v;
+        v ^= v >> 1;
+        j += 1;
+    }
+    let mut tables = [[0u32; 256]; 4];
+    let mut k = 0;
+    while k < 4 {
+        let mut b = 0;
+        while b < 256 {
+            let mut x = 0u32;
+            let mut bit = 0;
+            while bit < 8 {
+                if b & (1 << bit) != 0 {
+                    x ^= directions[8 * k + bit];
+                }
+                bit += 1;
+            }
+            tables[k][b] = x;
+            b += 1;
+        }
+        k += 1;
+    }
+    tables
+}
+
+/// The top 24 bits as a float in [0, 1), never rounded up to 1.
+#[inline]
+fn to_unit(x: u32) -> f32 {
+    (x >> 8) as f32 * (1.0 / (1u32 << 24) as f32)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Dimension 1 of Sobol' bit by bit, the definition the tables are built from.
+    fn sobol_1_reference(mut i: u32) -> u32 {
+        let (mut x, mut v) = (0u32, 1u32 << 31);
+        while i != 0 {
+            if i & 1 != 0 {
+                x ^= v;
+            }
+            i >>= 1;
+            v ^= v >> 1;
+        }
+        x
+    }
+
+    #[test]
+    fn dimension_1_tables_match_the_generator() {
+        let mut rng = Rng::from_seed(1, 2);
+        for i in (0..4096).chain((0..4096).map(|_| rng.next_u32())) {
+            assert_eq!(sobol_dimension_1(i), sobol_1_reference(i), "index {i}");
+        }
+        // The first points of Sobol' dimension 1: 0, 1/2, 3/4, 1/4.
+        let first: Vec<u32> = (0..4).map(|i| sobol_dimension_1(i) >> 30).collect();
+        assert_eq!(first, [0, 2, 3, 1]);
+    }
+
+    #[test]
+    fn scrambles_are_bijections_that_keep_prefixes() {
+        // An Owen scramble maps every aligned interval of length 2^-k onto another: the top k
+        // bits of the result depend on the top k bits of the input only.
+        let mut rng = Rng::from_seed(3, 4);
+        for _ in 0..1000 {
+            let (x, y, seed) = (rng.next_u32(), rng.next_u32(), rng.next_u32());
+            let k = rng.next_u32() % 32;
+            let top = |v: u32| v.checked_shr(32 - k).unwrap_or(0);
+            let same_top = top(x) == top(y);
+            let (sx, sy) = (
+                nested_uniform_scramble(x, seed),
+                nested_uniform_scramble(y, seed),
+            );
+            assert_eq!(same_top, top(sx) == top(sy));
+            assert_eq!(x == y, sx == sy);
+        }
+    }
+
+    /// The samples `0..n` of a pixel's first dimensions.
+    fn pixel_points(seed: u64, pixel: u64, n: u64, skip: usize) -> Vec<[f32; 2]> {
+        (0..n)
+            .map(|i| {
+                let mut s = SobolSample::new(seed, Stream::Eye, pixel, i);
+                for _ in 0..skip {
+                    s.next_1d();
+                }
+                s.next_2d()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn every_power_of_two_prefix_is_a_net() {
+        // (0, m, 2)-net: each of the 2^m elementary boxes of every shape 2^-a x 2^-(m-a)
+        // holds exactly one of the first 2^m points.
+        for (pixel, skip) in [(0, 0), (17, 1), (123_456, 5)] {
+            let points = pixel_points(9, pixel, 256, skip);
+            for m in 0..=8u32 {
+                let prefix = &points[..1 << m];
+                for a in 0..=m {
+                    let mut seen = vec![false; 1 << m];
+                    for p in prefix {
+                        let cx = (p[0] * (1u32 << a) as f32) as usize;
+                        let cy = (p[1] * (1u32 << (m - a)) as f32) as usize;
+                        let cell = cx << (m - a) | cy;
+                        assert!(!seen[cell], "pixel {pixel}, 2^{m} points, shape {a}");
+                        seen[cell] = true;
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn one_dimensional_prefixes_are_stratified() {
+        for pixel in [0, 5, 99] {
+            let n = 64;
+            let mut strata = vec![false; n];
+            for i in 0..n as u64 {
+                let mut s = SobolSample::new(2, Stream::Eye, pixel, i);
+                s.next_2d();
+                let x = s.next_1d();
+                let cell = (x * n as f32) as usize;
+                assert!(!strata[cell], "pixel {pixel}, sample {i}");
+                strata[cell] = true;
+            }
+        }
+    }
+
+    #[test]
+    fn each_sample_is_uniform_and_its_dimensions_independent() {
+        // Over many pixels (independent randomisations) sample 0's coordinates are uniform and
+        // the products of different dimensions average 1/4. 5 standard errors.
+        let n = 200_000u64;
+        let (mut sums, mut cross) = ([0.0f64; 4], [0.0f64; 2]);
+        for pixel in 0..n {
+            let mut s = SobolSample::new(11, Stream::Light, pixel, 3);
+            let [a, b] = s.next_2d();
+            let c = s.next_1d();
+            let [d, _] = s.next_2d();
+            for (sum, x) in sums.iter_mut().zip([a, b, c, d]) {
+                assert!((0.0..1.0).contains(&x));
+                *sum += x as f64;
+            }
+            cross[0] += (a * c) as f64;
+            cross[1] += (b * d) as f64;
+        }
+        let n = n as f64;
+        for sum in sums {
+            assert!((sum / n - 0.5).abs() < 5.0 * (1.0 / 12.0 / n).sqrt());
+        }
+        // Var(XY) for independent uniforms = 1/9 - 1/16.
+        for c in cross {
+            assert!((c / n - 0.25).abs() < 5.0 * ((1.0 / 9.0 - 1.0 / 16.0) / n).sqrt());
+        }
+    }
+
+    #[test]
+    fn light_paths_of_one_iteration_are_stratified_together() {
+        let (paths, iteration) = (1024u64, 3u64);
+        let mut seen = vec![false; paths as usize];
+        for path in 0..paths {
+            let Sampler::Sobol(mut s) =
+                Sampler::light(SamplerKind::Sobol, 4, iteration, path, paths)
+            else {
+                unreachable!()
+            };
+            let [x, y] = s.next_2d();
+            let cell = ((x * 32.0) as usize) * 32 + (y * 32.0) as usize;
+            assert!(!seen[cell], "path {path}");
+            seen[cell] = true;
+        }
+    }
+}
