@@ -96,7 +96,8 @@ const DIMENSIONS_PER_VERTEX: u64 = 8;
 /// One sample of a Sobol sequence: its index and the key that seeds its dimensions.
 #[derive(Clone, Debug)]
 pub struct SobolSample {
-    index: u32,
+    /// The sample's index, bit-reversed: the shuffle and the scrambles work on reversed bits.
+    reversed_index: u32,
     key: u64,
     dimension: u64,
 }
@@ -107,39 +108,44 @@ impl SobolSample {
     fn new(seed: u64, stream: Stream, sequence: u64, index: u64) -> Self {
         let key = mix(seed ^ mix(stream as u64 ^ mix(sequence ^ mix(index >> 32))));
         SobolSample {
-            index: index as u32,
+            reversed_index: (index as u32).reverse_bits(),
             key,
             dimension: 0,
         }
     }
 
-    /// The seeds of the next dimension pair: the shuffle's and the two coordinates' scrambles.
+    /// The next dimension pair: its shuffled index, bit-reversed (the nested uniform scramble
+    /// of the index, Burley sec. 6, left reversed), and the seed of each coordinate's scramble.
     #[inline]
-    fn next_seeds(&mut self) -> (u32, u32, u64) {
+    fn next_pair(&mut self) -> (u32, u32, u32) {
         let h = mix(self.key ^ self.dimension.wrapping_mul(0x9e37_79b9_7f4a_7c15));
         self.dimension += 1;
-        (h as u32, (h >> 32) as u32, h)
+        let reversed_shuffled = laine_karras(self.reversed_index, h as u32);
+        let scramble_y = (h.wrapping_mul(0xd1b5_4a32_d192_ed03) >> 32) as u32;
+        (reversed_shuffled, (h >> 32) as u32, scramble_y)
     }
 
     #[inline]
     fn next_1d(&mut self) -> f32 {
-        let (shuffle, scramble, _) = self.next_seeds();
-        let i = nested_uniform_scramble(self.index, shuffle);
-        // Dimension 0 of Sobol' is the van der Corput sequence, reverse_bits(i); Owen
-        // scrambling it is reverse(permute(reverse(reverse(i)))).
-        to_unit(laine_karras(i, scramble).reverse_bits())
+        let (r, scramble_x, _) = self.next_pair();
+        to_unit(van_der_corput_scrambled(r, scramble_x))
     }
 
     #[inline]
     fn next_2d(&mut self) -> [f32; 2] {
-        let (shuffle, scramble_x, h) = self.next_seeds();
-        let scramble_y = (mix(h) >> 32) as u32;
-        let i = nested_uniform_scramble(self.index, shuffle);
+        let (r, scramble_x, scramble_y) = self.next_pair();
         [
-            to_unit(laine_karras(i, scramble_x).reverse_bits()),
-            to_unit(nested_uniform_scramble(sobol_dimension_1(i), scramble_y)),
+            to_unit(van_der_corput_scrambled(r, scramble_x)),
+            to_unit(laine_karras(sobol_1_reversed(r), scramble_y).reverse_bits()),
         ]
     }
+}
+
+/// Owen-scrambled Sobol' dimension 0 (van der Corput) of the index whose reversed bits are
+/// `r`: vdC(i) = reverse(i), and an Owen scramble of x is reverse(permute(reverse(x))).
+#[inline]
+fn van_der_corput_scrambled(r: u32, seed: u32) -> u32 {
+    laine_karras(r.reverse_bits(), seed).reverse_bits()
 }
 
 /// A hash permutation of 32-bit words in which every bit is flipped by a function of the bits
@@ -155,29 +161,24 @@ fn laine_karras(mut x: u32, seed: u32) -> u32 {
     x
 }
 
-/// Owen scramble of a 32-bit fixed-point number in [0, 1). Applied to a sample index it
-/// shuffles the sequence so that every aligned power-of-two block of it is still a net.
+/// Sobol' dimension 1 (generator matrix: Pascal's triangle mod 2) with its input and output
+/// bit-reversed, reverse(sobol_1(reverse(r))), from four byte-indexed tables: a linear map
+/// over GF(2), so each set bit of `r` adds (XOR) one reversed direction number.
 #[inline]
-fn nested_uniform_scramble(x: u32, seed: u32) -> u32 {
-    laine_karras(x.reverse_bits(), seed).reverse_bits()
+fn sobol_1_reversed(r: u32) -> u32 {
+    let [b0, b1, b2, b3] = r.to_le_bytes();
+    SOBOL_1_REVERSED_BYTES[0][b0 as usize]
+        ^ SOBOL_1_REVERSED_BYTES[1][b1 as usize]
+        ^ SOBOL_1_REVERSED_BYTES[2][b2 as usize]
+        ^ SOBOL_1_REVERSED_BYTES[3][b3 as usize]
 }
 
-/// Dimension 1 of Sobol' (generator matrix: Pascal's triangle mod 2), as 32-bit fixed point,
-/// from four byte-indexed tables of the direction numbers.
-#[inline]
-fn sobol_dimension_1(i: u32) -> u32 {
-    let [b0, b1, b2, b3] = i.to_le_bytes();
-    SOBOL_1_BYTES[0][b0 as usize]
-        ^ SOBOL_1_BYTES[1][b1 as usize]
-        ^ SOBOL_1_BYTES[2][b2 as usize]
-        ^ SOBOL_1_BYTES[3][b3 as usize]
-}
+/// `SOBOL_1_REVERSED_BYTES[k][b]`: [`sobol_1_reversed`] of `b << 8k`.
+static SOBOL_1_REVERSED_BYTES: [[u32; 256]; 4] = sobol_1_reversed_byte_tables();
 
-/// `SOBOL_1_BYTES[k][b]`: the XOR of the direction numbers of the set bits of byte `k` = `b`.
-static SOBOL_1_BYTES: [[u32; 256]; 4] = sobol_1_byte_tables();
-
-const fn sobol_1_byte_tables() -> [[u32; 256]; 4] {
-    // Direction number j: v_0 = 2^31, v_{j+1} = v_j ^ (v_j >> 1).
+const fn sobol_1_reversed_byte_tables() -> [[u32; 256]; 4] {
+    // Direction number j: v_0 = 2^31, v_{j+1} = v_j ^ (v_j >> 1); bit p of r is bit 31 - p of
+    // the index.
     let mut directions = [0u32; 32];
     let mut v = 1u32 << 31;
     let mut j = 0;
@@ -195,7 +196,7 @@ const fn sobol_1_byte_tables() -> [[u32; 256]; 4] {
             let mut bit = 0;
             while bit < 8 {
                 if b & (1 << bit) != 0 {
-                    x ^= directions[8 * k + bit];
+                    x ^= directions[31 - (8 * k + bit)].reverse_bits();
                 }
                 bit += 1;
             }
@@ -234,17 +235,25 @@ mod tests {
     fn dimension_1_tables_match_the_generator() {
         let mut rng = Rng::from_seed(1, 2);
         for i in (0..4096).chain((0..4096).map(|_| rng.next_u32())) {
-            assert_eq!(sobol_dimension_1(i), sobol_1_reference(i), "index {i}");
+            let r = i.reverse_bits();
+            assert_eq!(
+                sobol_1_reversed(r).reverse_bits(),
+                sobol_1_reference(i),
+                "index {i}"
+            );
         }
         // The first points of Sobol' dimension 1: 0, 1/2, 3/4, 1/4.
-        let first: Vec<u32> = (0..4).map(|i| sobol_dimension_1(i) >> 30).collect();
+        let first: Vec<u32> = (0u32..4)
+            .map(|i| sobol_1_reversed(i.reverse_bits()).reverse_bits() >> 30)
+            .collect();
         assert_eq!(first, [0, 2, 3, 1]);
     }
 
     #[test]
     fn scrambles_are_bijections_that_keep_prefixes() {
         // An Owen scramble maps every aligned interval of length 2^-k onto another: the top k
-        // bits of the result depend on the top k bits of the input only.
+        // bits of the result depend on the top k bits of the input only. Here it scrambles the
+        // number x (the van der Corput point of the index whose reversed bits are x).
         let mut rng = Rng::from_seed(3, 4);
         for _ in 0..1000 {
             let (x, y, seed) = (rng.next_u32(), rng.next_u32(), rng.next_u32());
@@ -252,8 +261,8 @@ mod tests {
             let top = |v: u32| v.checked_shr(32 - k).unwrap_or(0);
             let same_top = top(x) == top(y);
             let (sx, sy) = (
-                nested_uniform_scramble(x, seed),
-                nested_uniform_scramble(y, seed),
+                van_der_corput_scrambled(x, seed),
+                van_der_corput_scrambled(y, seed),
             );
             assert_eq!(same_top, top(sx) == top(sy));
             assert_eq!(x == y, sx == sy);
