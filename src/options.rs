@@ -640,6 +640,22 @@ mod tests {
         }
     }
 
+    /// A render recorded before the sampler was an option drew independent numbers, and
+    /// continues with them; a new one records its sampler.
+    #[test]
+    fn recorded_options_without_a_sampler_continue_with_independent_numbers() {
+        let mut table = match toml::Value::try_from(RenderOptions::DEFAULT) {
+            Ok(toml::Value::Table(t)) => t,
+            other => panic!("{other:?}"),
+        };
+        assert_eq!(
+            table.remove("sampler"),
+            Some(toml::Value::String("sobol".into()))
+        );
+        let old: RenderOptions = toml::Value::Table(table).try_into().unwrap();
+        assert_eq!(old.sampler, SamplerKind::Independent);
+    }
+
     #[test]
     fn every_rule_names_a_field_once() {
         let mut names: Vec<&str> = RULES.iter().map(|r| r.name).collect();

@@ -209,7 +209,8 @@ impl<'a> Bpt<'a> {
             return;
         };
         let light = lights.get(light_index);
-        let (u_pos, u_dir) = (rng.next_2d(), rng.next_2d());
+        let [a, b, c, d] = rng.next_4d();
+        let (u_pos, u_dir) = ([a, b], [c, d]);
         let Some(e) = light.emit(u_pos, u_dir) else {
             return;
         };

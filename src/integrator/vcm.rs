@@ -225,7 +225,8 @@ impl<'a> VertexCm<'a> {
         let lights = &self.scene().lights;
         let (index, pick) = lights.pick(rng.next_f32())?;
         let light = lights.get(index);
-        let (u_pos, u_dir) = (rng.next_2d(), rng.next_2d());
+        let [a, b, c, d] = rng.next_4d();
+        let (u_pos, u_dir) = ([a, b], [c, d]);
         let e = light.emit(u_pos, u_dir)?;
         let emission_pdf_w = e.emission_pdf_w * pick;
         let direct_pdf_a = e.direct_pdf_a * pick;

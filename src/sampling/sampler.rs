@@ -79,6 +79,19 @@ impl Sampler {
         }
     }
 
+    /// Two 2D points stratified jointly (`[0]`, `[1]` and `[2]`, `[3]`), such as a light
+    /// sub-path's start: a point on the light and a direction from it.
+    #[inline]
+    pub fn next_4d(&mut self) -> [f32; 4] {
+        match self {
+            Sampler::Sobol(s) => s.next_4d(),
+            Sampler::Independent(rng) => {
+                let ([a, b], [c, d]) = (rng.next_2d(), rng.next_2d());
+                [a, b, c, d]
+            }
+        }
+    }
+
     /// A choice (`[0]`, such as a BSDF's lobe) and a 2D point (`[1]`, `[2]`), as
     /// a BSDF sample takes them.
     #[inline]
@@ -114,38 +127,81 @@ impl SobolSample {
         }
     }
 
-    /// The next dimension pair: its shuffled index, bit-reversed (the nested uniform scramble
-    /// of the index, Burley sec. 6, left reversed), and the seed of each coordinate's scramble.
+    /// The hash of the next dimension slot: its low half shuffles the index, the high half
+    /// seeds the coordinates' scrambles.
     #[inline]
-    fn next_pair(&mut self) -> (u32, u32, u32) {
+    fn next_slot(&mut self) -> u64 {
         let h = mix(self.key ^ self.dimension.wrapping_mul(0x9e37_79b9_7f4a_7c15));
         self.dimension += 1;
-        let reversed_shuffled = laine_karras(self.reversed_index, h as u32);
-        let scramble_y = (h.wrapping_mul(0xd1b5_4a32_d192_ed03) >> 32) as u32;
-        (reversed_shuffled, (h >> 32) as u32, scramble_y)
+        h
+    }
+
+    /// The index shuffled by slot hash `h` (the nested uniform scramble of the index, Burley
+    /// sec. 6), left bit-reversed.
+    #[inline]
+    fn shuffled(&self, h: u64) -> u32 {
+        laine_karras(self.reversed_index, h as u32)
     }
 
     #[inline]
     fn next_1d(&mut self) -> f32 {
-        let (r, scramble_x, _) = self.next_pair();
-        to_unit(van_der_corput_scrambled(r, scramble_x))
+        let h = self.next_slot();
+        to_unit(scrambled(
+            SobolDimension::Zero,
+            self.shuffled(h),
+            scramble_seeds(h)[0],
+        ))
     }
 
     #[inline]
     fn next_2d(&mut self) -> [f32; 2] {
-        let (r, scramble_x, scramble_y) = self.next_pair();
+        let h = self.next_slot();
+        let (r, [s0, s1]) = (self.shuffled(h), scramble_seeds(h));
         [
-            to_unit(van_der_corput_scrambled(r, scramble_x)),
-            to_unit(laine_karras(sobol_1_reversed(r), scramble_y).reverse_bits()),
+            to_unit(scrambled(SobolDimension::Zero, r, s0)),
+            to_unit(scrambled(SobolDimension::One, r, s1)),
+        ]
+    }
+
+    /// Dimensions 0-3 of one shuffled Sobol' point: a (3, m, 4)-net for every power-of-two
+    /// run, so the two 2D points are stratified jointly, not only each on its own. Two slots.
+    #[inline]
+    fn next_4d(&mut self) -> [f32; 4] {
+        let h = self.next_slot();
+        let r = self.shuffled(h);
+        let ([s0, s1], [s2, s3]) = (scramble_seeds(h), scramble_seeds(self.next_slot()));
+        [
+            to_unit(scrambled(SobolDimension::Zero, r, s0)),
+            to_unit(scrambled(SobolDimension::One, r, s1)),
+            to_unit(scrambled(SobolDimension::Two, r, s2)),
+            to_unit(scrambled(SobolDimension::Three, r, s3)),
         ]
     }
 }
 
-/// Owen-scrambled Sobol' dimension 0 (van der Corput) of the index whose reversed bits are
-/// `r`: vdC(i) = reverse(i), and an Owen scramble of x is reverse(permute(reverse(x))).
+/// Two scramble seeds from a slot's hash.
 #[inline]
-fn van_der_corput_scrambled(r: u32, seed: u32) -> u32 {
-    laine_karras(r.reverse_bits(), seed).reverse_bits()
+fn scramble_seeds(h: u64) -> [u32; 2] {
+    [
+        (h >> 32) as u32,
+        (h.wrapping_mul(0xd1b5_4a32_d192_ed03) >> 32) as u32,
+    ]
+}
+
+/// The first four dimensions of Sobol'.
+#[derive(Clone, Copy)]
+enum SobolDimension {
+    Zero,
+    One,
+    Two,
+    Three,
+}
+
+/// Owen-scrambled Sobol' coordinate of the index whose reversed bits are `r`: an Owen scramble
+/// of x is reverse(permute(reverse(x))), and reverse(x) is [`sobol_reversed`] of `r`.
+#[inline]
+fn scrambled(dimension: SobolDimension, r: u32, seed: u32) -> u32 {
+    laine_karras(sobol_reversed(dimension, r), seed).reverse_bits()
 }
 
 /// A hash permutation of 32-bit words in which every bit is flipped by a function of the bits
@@ -161,32 +217,74 @@ fn laine_karras(mut x: u32, seed: u32) -> u32 {
     x
 }
 
-/// Sobol' dimension 1 (generator matrix: Pascal's triangle mod 2) with its input and output
-/// bit-reversed, reverse(sobol_1(reverse(r))), from four byte-indexed tables: a linear map
-/// over GF(2), so each set bit of `r` adds (XOR) one reversed direction number.
+/// Sobol' dimension `dimension` with its input and output bit-reversed,
+/// reverse(C reverse(r)) for the dimension's generator matrix C, from four byte-indexed
+/// tables: a linear map over GF(2), so each set bit of `r` adds (XOR) one reversed direction
+/// number. Dimension 0 (van der Corput, C = the bit reversal) is reverse(r) itself.
 #[inline]
-fn sobol_1_reversed(r: u32) -> u32 {
+fn sobol_reversed(dimension: SobolDimension, r: u32) -> u32 {
+    let tables = match dimension {
+        SobolDimension::Zero => return r.reverse_bits(),
+        SobolDimension::One => &SOBOL_REVERSED_BYTES[0],
+        SobolDimension::Two => &SOBOL_REVERSED_BYTES[1],
+        SobolDimension::Three => &SOBOL_REVERSED_BYTES[2],
+    };
     let [b0, b1, b2, b3] = r.to_le_bytes();
-    SOBOL_1_REVERSED_BYTES[0][b0 as usize]
-        ^ SOBOL_1_REVERSED_BYTES[1][b1 as usize]
-        ^ SOBOL_1_REVERSED_BYTES[2][b2 as usize]
-        ^ SOBOL_1_REVERSED_BYTES[3][b3 as usize]
+    tables[0][b0 as usize]
+        ^ tables[1][b1 as usize]
+        ^ tables[2][b2 as usize]
+        ^ tables[3][b3 as usize]
 }
 
-/// `SOBOL_1_REVERSED_BYTES[k][b]`: [`sobol_1_reversed`] of `b << 8k`.
-static SOBOL_1_REVERSED_BYTES: [[u32; 256]; 4] = sobol_1_reversed_byte_tables();
+/// The primitive polynomials and initial direction numbers m_1..m_s of Sobol' dimensions 1-3
+/// (Joe and Kuo's `new-joe-kuo-6.21201`, its d = 2, 3, 4): degree s, the inner coefficients
+/// a_1..a_(s-1) as the bits of a (a_1 highest), and m.
+const POLYNOMIALS: [(u32, u32, [u32; 3]); 3] =
+    [(1, 0, [1, 0, 0]), (2, 1, [1, 3, 0]), (3, 1, [1, 3, 1])];
 
-const fn sobol_1_reversed_byte_tables() -> [[u32; 256]; 4] {
-    // Direction number j: v_0 = 2^31, v_{j+1} = v_j ^ (v_j >> 1); bit p of r is bit 31 - p of
-    // the index.
-    let mut directions = [0u32; 32];
-    let mut v = 1u32 << 31;
-    let mut j = 0;
-    while j < 32 {
-        directions[j] = v;
-        v ^= v >> 1;
-        j += 1;
+/// The 32 direction numbers v_1..v_32 of a dimension, as 32-bit fixed point (v_k = m_k / 2^k),
+/// by Bratley and Fox's recurrence m_k = 2 a_1 m_(k-1) ^ 4 a_2 m_(k-2) ^ ... ^ 2^s m_(k-s) ^
+/// m_(k-s).
+const fn directions(degree: u32, a: u32, initial: [u32; 3]) -> [u32; 32] {
+    let s = degree as usize;
+    let mut m = [0u64; 32];
+    let mut k = 0;
+    while k < 32 {
+        m[k] = if k < s {
+            initial[k] as u64
+        } else {
+            let mut x = m[k - s] ^ (m[k - s] << s);
+            let mut i = 1;
+            while i < s {
+                if (a >> (s - 1 - i)) & 1 == 1 {
+                    x ^= m[k - i] << i;
+                }
+                i += 1;
+            }
+            x
+        };
+        k += 1;
     }
+    let mut v = [0u32; 32];
+    let mut k = 0;
+    while k < 32 {
+        // m_k < 2^k, so m_k / 2^k in 32 bits is m_k << (32 - k) with k counted from 1.
+        v[k] = (m[k] << (31 - k)) as u32;
+        k += 1;
+    }
+    v
+}
+
+/// `SOBOL_REVERSED_BYTES[d - 1][k][b]`: [`sobol_reversed`] of dimension d at `b << 8k`.
+static SOBOL_REVERSED_BYTES: [[[u32; 256]; 4]; 3] = [
+    reversed_byte_tables(POLYNOMIALS[0]),
+    reversed_byte_tables(POLYNOMIALS[1]),
+    reversed_byte_tables(POLYNOMIALS[2]),
+];
+
+const fn reversed_byte_tables((degree, a, initial): (u32, u32, [u32; 3])) -> [[u32; 256]; 4] {
+    // Bit p of r is bit 31 - p of the index, whose direction number is v_(32 - p).
+    let v = directions(degree, a, initial);
     let mut tables = [[0u32; 256]; 4];
     let mut k = 0;
     while k < 4 {
@@ -196,7 +294,7 @@ const fn sobol_1_reversed_byte_tables() -> [[u32; 256]; 4] {
             let mut bit = 0;
             while bit < 8 {
                 if b & (1 << bit) != 0 {
-                    x ^= directions[31 - (8 * k + bit)].reverse_bits();
+                    x ^= v[31 - (8 * k + bit)].reverse_bits();
                 }
                 bit += 1;
             }
@@ -237,16 +335,64 @@ mod tests {
         for i in (0..4096).chain((0..4096).map(|_| rng.next_u32())) {
             let r = i.reverse_bits();
             assert_eq!(
-                sobol_1_reversed(r).reverse_bits(),
+                sobol_reversed(SobolDimension::One, r).reverse_bits(),
                 sobol_1_reference(i),
                 "index {i}"
             );
         }
         // The first points of Sobol' dimension 1: 0, 1/2, 3/4, 1/4.
         let first: Vec<u32> = (0u32..4)
-            .map(|i| sobol_1_reversed(i.reverse_bits()).reverse_bits() >> 30)
+            .map(|i| sobol_reversed(SobolDimension::One, i.reverse_bits()).reverse_bits() >> 30)
             .collect();
         assert_eq!(first, [0, 2, 3, 1]);
+    }
+
+    /// The direction numbers m_k of dimensions 1-3, as SciPy's `qmc.Sobol` (Joe and Kuo's
+    /// numbers) gives them: its first 1024 unscrambled points match these to the bit.
+    #[test]
+    fn direction_numbers_follow_the_recurrence() {
+        let m = |d: usize, k: usize| {
+            directions(POLYNOMIALS[d].0, POLYNOMIALS[d].1, POLYNOMIALS[d].2)[k] >> (31 - k)
+        };
+        assert_eq!(
+            (0..6).map(|k| m(0, k)).collect::<Vec<_>>(),
+            [1, 3, 5, 15, 17, 51]
+        );
+        assert_eq!(
+            (0..6).map(|k| m(1, k)).collect::<Vec<_>>(),
+            [1, 3, 3, 9, 29, 23]
+        );
+        assert_eq!(
+            (0..6).map(|k| m(2, k)).collect::<Vec<_>>(),
+            [1, 3, 1, 5, 31, 29]
+        );
+    }
+
+    /// The four dimensions of the first 2^m shuffled points form a (3, m, 4)-net: every
+    /// elementary box of volume 2^(3 - m) holds exactly 2^3 of them.
+    #[test]
+    fn four_dimensional_prefixes_are_nets() {
+        let m = 8u32;
+        let points: Vec<[f32; 4]> = (0..1u64 << m)
+            .map(|i| SobolSample::new(6, Stream::Light, 0, i).next_4d())
+            .collect();
+        let volume_bits = m - 3;
+        for a0 in 0..=volume_bits {
+            for a1 in 0..=volume_bits - a0 {
+                for a2 in 0..=volume_bits - a0 - a1 {
+                    let a = [a0, a1, a2, volume_bits - a0 - a1 - a2];
+                    let mut counts = vec![0u32; 1 << volume_bits];
+                    for p in &points {
+                        let mut cell = 0usize;
+                        for (x, bits) in p.iter().zip(a) {
+                            cell = (cell << bits) | (x * (1u32 << bits) as f32) as usize;
+                        }
+                        counts[cell] += 1;
+                    }
+                    assert!(counts.iter().all(|&c| c == 8), "shape {a:?}: {counts:?}");
+                }
+            }
+        }
     }
 
     #[test]
@@ -261,8 +407,8 @@ mod tests {
             let top = |v: u32| v.checked_shr(32 - k).unwrap_or(0);
             let same_top = top(x) == top(y);
             let (sx, sy) = (
-                van_der_corput_scrambled(x, seed),
-                van_der_corput_scrambled(y, seed),
+                scrambled(SobolDimension::Zero, x, seed),
+                scrambled(SobolDimension::Zero, y, seed),
             );
             assert_eq!(same_top, top(sx) == top(sy));
             assert_eq!(x == y, sx == sy);
