@@ -166,12 +166,12 @@ impl<'a> Bpt<'a> {
         state: &mut SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
-        rng: &mut Sampler,
+        sampler: &mut Sampler,
     ) -> Option<()> {
-        let s = bsdf.sample(rng.next_choice_2d())?;
+        let s = bsdf.sample(sampler.next_choice_2d())?;
         if state.index >= self.ctx.options.roulette {
             let q = bsdf.continuation_probability();
-            if rng.next_f32() >= q {
+            if sampler.next_f32() >= q {
                 return None;
             }
             state.throughput /= q;
@@ -198,18 +198,18 @@ impl<'a> Bpt<'a> {
     /// connections to the camera (t = 1).
     fn trace_light_path(
         &self,
-        rng: &mut Sampler,
+        sampler: &mut Sampler,
         vertices: &mut Vec<LightVertex>,
         splats: &mut Vec<(usize, Rgb)>,
         stats: &mut IterationStats,
     ) {
         vertices.clear();
         let lights = &self.scene().lights;
-        let Some((light_index, pick)) = lights.pick(rng.next_f32()) else {
+        let Some((light_index, pick)) = lights.pick(sampler.next_f32()) else {
             return;
         };
         let light = lights.get(light_index);
-        let [a, b, c, d] = rng.next_4d();
+        let [a, b, c, d] = sampler.next_4d();
         let (u_pos, u_dir) = ([a, b], [c, d]);
         let Some(e) = light.emit(u_pos, u_dir) else {
             return;
@@ -237,7 +237,7 @@ impl<'a> Bpt<'a> {
         };
         let max_length = self.ctx.max_path_length();
         loop {
-            rng.start_vertex(state.index);
+            sampler.start_vertex(state.index);
             stats.rays += 1;
             let Some(hit) = self.scene().intersect(&state.ray) else {
                 break;
@@ -267,7 +267,7 @@ impl<'a> Bpt<'a> {
             if state.index.saturating_add(2) > max_length {
                 break;
             }
-            if self.scatter(&mut state, &hit, &bsdf, rng).is_none() {
+            if self.scatter(&mut state, &hit, &bsdf, sampler).is_none() {
                 break;
             }
         }
@@ -345,10 +345,10 @@ impl<'a> Bpt<'a> {
         state: &SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
-        rng: &mut Sampler,
+        sampler: &mut Sampler,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let sample = LightSample::draw(self.scene(), hit, bsdf, rng);
+        let sample = LightSample::draw(self.scene(), hit, bsdf, sampler);
         let Some(ls) = sample.filter(|_| self.filter.allows(1, state.index + 1)) else {
             return Rgb::BLACK;
         };
@@ -405,14 +405,14 @@ impl<'a> Bpt<'a> {
     /// Traces the eye sub-path of `pixel` against its light sub-path `light_path`.
     fn trace_eye_path(
         &self,
-        rng: &mut Sampler,
+        sampler: &mut Sampler,
         pixel: usize,
         light_path: &[LightVertex],
         stats: &mut IterationStats,
     ) -> Rgb {
         let camera = &self.ctx.camera;
         let width = camera.width as usize;
-        let [jx, jy] = rng.next_2d();
+        let [jx, jy] = sampler.next_2d();
         let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
         let mut state = SubPath {
             ray,
@@ -432,7 +432,7 @@ impl<'a> Bpt<'a> {
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
         loop {
-            rng.start_vertex(state.index);
+            sampler.start_vertex(state.index);
             stats.rays += 1;
             let hit = self.scene().intersect(&state.ray);
             state.arrive(self.power, hit.as_ref());
@@ -448,7 +448,8 @@ impl<'a> Bpt<'a> {
                 break;
             };
             if !bsdf.is_delta() {
-                color += state.throughput * self.light_sampling(&state, &hit, &bsdf, rng, stats);
+                color +=
+                    state.throughput * self.light_sampling(&state, &hit, &bsdf, sampler, stats);
                 for lv in light_path {
                     let s = lv.index + 1;
                     if lv.index + state.index + 1 > max_length {
@@ -459,7 +460,7 @@ impl<'a> Bpt<'a> {
                     }
                 }
             }
-            if self.scatter(&mut state, &hit, &bsdf, rng).is_none() {
+            if self.scatter(&mut state, &hit, &bsdf, sampler).is_none() {
                 break;
             }
         }
@@ -469,7 +470,7 @@ impl<'a> Bpt<'a> {
 
 impl Integrator for Bpt<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
-        let (seed, sampler) = (self.ctx.options.seed, self.ctx.options.sampler);
+        let (seed, kind) = (self.ctx.options.seed, self.ctx.options.sampler);
         let pixels = frame.len();
         let trace_light = self.filter.needs_light_path();
         let chunks: Vec<Chunk> = (0..pixels)
@@ -482,22 +483,17 @@ impl Integrator for Bpt<'_> {
                 let colors = (start..(start + CHUNK).min(pixels))
                     .map(|pixel| {
                         if trace_light {
-                            let mut rng = Sampler::light(
-                                sampler,
-                                seed,
-                                iteration,
-                                pixel as u64,
-                                pixels as u64,
-                            );
+                            let mut sampler =
+                                Sampler::light(kind, seed, iteration, pixel as u64, pixels as u64);
                             self.trace_light_path(
-                                &mut rng,
+                                &mut sampler,
                                 &mut light_path,
                                 &mut splats,
                                 &mut stats,
                             );
                         }
-                        let mut rng = Sampler::eye(sampler, seed, iteration, pixel as u64);
-                        self.trace_eye_path(&mut rng, pixel, &light_path, &mut stats)
+                        let mut sampler = Sampler::eye(kind, seed, iteration, pixel as u64);
+                        self.trace_eye_path(&mut sampler, pixel, &light_path, &mut stats)
                     })
                     .collect();
                 Chunk {

@@ -27,10 +27,10 @@ impl<'s> LightSample<'s> {
         scene: &'s Scene,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
-        rng: &mut Sampler,
+        sampler: &mut Sampler,
     ) -> Option<Self> {
-        let u_pick = rng.next_f32();
-        let u = rng.next_2d();
+        let u_pick = sampler.next_f32();
+        let u = sampler.next_2d();
         let (index, pick) = scene.lights.pick(u_pick)?;
         let light = scene.lights.get(index);
         let il = light.illuminate(hit.position, u)?;

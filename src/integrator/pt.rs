@@ -28,7 +28,7 @@ impl<'a> PathTracer<'a> {
     }
 
     /// Radiance arriving at the camera through raster point `(x, y)`, and the rays traced.
-    fn radiance(&self, mut ray: Ray, rng: &mut Sampler) -> (Rgb, u64) {
+    fn radiance(&self, mut ray: Ray, sampler: &mut Sampler) -> (Rgb, u64) {
         let scene = self.ctx.scene;
         let max_length = self.ctx.max_path_length();
         let roulette = self.ctx.options.roulette;
@@ -44,7 +44,7 @@ impl<'a> PathTracer<'a> {
         // Segments of the path so far, camera included.
         let mut length = 1u32;
         loop {
-            rng.start_vertex(length);
+            sampler.start_vertex(length);
             rays += 1;
             let Some(hit) = scene.intersect(&ray) else {
                 if let Some(received) = scene
@@ -72,18 +72,18 @@ impl<'a> PathTracer<'a> {
                 break;
             };
             if !bsdf.is_delta() && length + 1 >= min_length {
-                let (light, shadow_rays) = self.sample_light(&hit, &bsdf, rng);
+                let (light, shadow_rays) = self.sample_light(&hit, &bsdf, sampler);
                 radiance += throughput * light;
                 rays += shadow_rays;
             }
-            let u = rng.next_choice_2d();
+            let u = sampler.next_choice_2d();
             let Some(sample) = bsdf.sample(u) else {
                 break;
             };
             throughput *= sample.f * (bsdf.cos_theta(sample.wi) / sample.pdf_w);
             if length >= roulette {
                 let continue_probability = bsdf.continuation_probability();
-                if rng.next_f32() >= continue_probability {
+                if sampler.next_f32() >= continue_probability {
                     break;
                 }
                 throughput /= continue_probability;
@@ -120,9 +120,9 @@ impl<'a> PathTracer<'a> {
     }
 
     /// Next-event estimation: one light sample, weighted against BSDF sampling.
-    fn sample_light(&self, hit: &SurfaceHit, bsdf: &Bsdf, rng: &mut Sampler) -> (Rgb, u64) {
+    fn sample_light(&self, hit: &SurfaceHit, bsdf: &Bsdf, sampler: &mut Sampler) -> (Rgb, u64) {
         let scene = self.ctx.scene;
-        let Some(ls) = LightSample::draw(scene, hit, bsdf, rng) else {
+        let Some(ls) = LightSample::draw(scene, hit, bsdf, sampler) else {
             return (Rgb::BLACK, 0);
         };
         if !ls.visible(scene, hit) {
@@ -141,7 +141,7 @@ impl Integrator for PathTracer<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
         let camera = &self.ctx.camera;
         let width = camera.width as usize;
-        let (seed, sampler) = (self.ctx.options.seed, self.ctx.options.sampler);
+        let (seed, kind) = (self.ctx.options.seed, self.ctx.options.sampler);
         let this = &*self;
         frame
             .par_chunks_mut(width)
@@ -150,10 +150,10 @@ impl Integrator for PathTracer<'_> {
                 let mut stats = IterationStats::default();
                 for (x, pixel) in row.iter_mut().enumerate() {
                     let index = (y * width + x) as u64;
-                    let mut rng = Sampler::eye(sampler, seed, iteration, index);
-                    let [jx, jy] = rng.next_2d();
+                    let mut sampler = Sampler::eye(kind, seed, iteration, index);
+                    let [jx, jy] = sampler.next_2d();
                     let ray = camera.generate_ray(x as f32 + jx, y as f32 + jy);
-                    let (radiance, rays) = this.radiance(ray, &mut rng);
+                    let (radiance, rays) = this.radiance(ray, &mut sampler);
                     stats.rays += rays;
                     add_sample(pixel, radiance, &mut stats.dropped_samples);
                 }

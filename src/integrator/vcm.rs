@@ -221,11 +221,11 @@ impl<'a> VertexCm<'a> {
     }
 
     /// Starts a light sub-path (SmallVCM's GenerateLightSample; 001 eqs. 31-33).
-    fn light_sample(&self, w: &VcmWeights, rng: &mut Sampler) -> Option<SubPath> {
+    fn light_sample(&self, w: &VcmWeights, sampler: &mut Sampler) -> Option<SubPath> {
         let lights = &self.scene().lights;
-        let (index, pick) = lights.pick(rng.next_f32())?;
+        let (index, pick) = lights.pick(sampler.next_f32())?;
         let light = lights.get(index);
-        let [a, b, c, d] = rng.next_4d();
+        let [a, b, c, d] = sampler.next_4d();
         let (u_pos, u_dir) = ([a, b], [c, d]);
         let e = light.emit(u_pos, u_dir)?;
         let emission_pdf_w = e.emission_pdf_w * pick;
@@ -273,13 +273,13 @@ impl<'a> VertexCm<'a> {
         state: &mut SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
-        rng: &mut Sampler,
+        sampler: &mut Sampler,
         light_side: bool,
     ) -> Option<()> {
-        let s = bsdf.sample(rng.next_choice_2d())?;
+        let s = bsdf.sample(sampler.next_choice_2d())?;
         if state.path_length >= self.ctx.options.roulette {
             let q = bsdf.continuation_probability();
-            if rng.next_f32() >= q {
+            if sampler.next_f32() >= q {
                 return None;
             }
             state.throughput /= q;
@@ -324,19 +324,19 @@ impl<'a> VertexCm<'a> {
         chunk: &mut LightChunk,
     ) {
         let o = self.ctx.options;
-        let mut rng = Sampler::light(
+        let mut sampler = Sampler::light(
             o.sampler,
             o.seed,
             iteration,
             index as u64,
             self.light_paths() as u64,
         );
-        let Some(mut state) = self.light_sample(w, &mut rng) else {
+        let Some(mut state) = self.light_sample(w, &mut sampler) else {
             return;
         };
         let max_length = self.ctx.max_path_length();
         loop {
-            rng.start_vertex(state.path_length);
+            sampler.start_vertex(state.path_length);
             chunk.stats.rays += 1;
             let Some(hit) = self.scene().intersect(&state.ray) else {
                 break;
@@ -374,7 +374,7 @@ impl<'a> VertexCm<'a> {
                 break;
             }
             if self
-                .scatter(w, &mut state, &hit, &bsdf, &mut rng, true)
+                .scatter(w, &mut state, &hit, &bsdf, &mut sampler, true)
                 .is_none()
             {
                 break;
@@ -519,13 +519,13 @@ impl<'a> VertexCm<'a> {
         state: &SubPath,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
-        rng: &mut Sampler,
+        sampler: &mut Sampler,
         stats: &mut IterationStats,
     ) -> Rgb {
         if self.too_short(state.path_length + 1) {
             return Rgb::BLACK;
         }
-        let Some(ls) = LightSample::draw(self.scene(), hit, bsdf, rng) else {
+        let Some(ls) = LightSample::draw(self.scene(), hit, bsdf, sampler) else {
             return Rgb::BLACK;
         };
         // Towards the light lies the light point, which tentative rays cannot leave from.
@@ -660,10 +660,11 @@ impl<'a> VertexCm<'a> {
             vertices: &pass.light.vertices,
             grid,
         });
-        let mut rng = Sampler::eye(self.ctx.options.sampler, seed, pass.iteration, pixel as u64);
+        let mut sampler =
+            Sampler::eye(self.ctx.options.sampler, seed, pass.iteration, pixel as u64);
         let mut tentative = Tentative::new(seed, pass.iteration, pixel);
         let width = camera.width as usize;
-        let [jx, jy] = rng.next_2d();
+        let [jx, jy] = sampler.next_2d();
         let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
         let camera_pdf_w = camera.pdf_w(ray.dir);
         let mut state = SubPath {
@@ -681,7 +682,7 @@ impl<'a> VertexCm<'a> {
         let mut color = Rgb::BLACK;
         let mut prev: Option<EyeVertex> = None;
         loop {
-            rng.start_vertex(state.path_length);
+            sampler.start_vertex(state.path_length);
             stats.rays += 1;
             let Some(hit) = self.scene().intersect(&state.ray) else {
                 color += state.throughput * self.emission(w, &state, None);
@@ -711,7 +712,7 @@ impl<'a> VertexCm<'a> {
                 state.density = self.density_at(w, hit.position, &mut state);
                 if self.modes.vc {
                     color += state.throughput
-                        * self.light_sampling(w, &state, &hit, &bsdf, &mut rng, stats);
+                        * self.light_sampling(w, &state, &hit, &bsdf, &mut sampler, stats);
                     for lv in light_path {
                         if lv.path_length + state.path_length + 1 > max_length {
                             break;
@@ -753,7 +754,7 @@ impl<'a> VertexCm<'a> {
                     path_length: state.path_length,
                 });
             if self
-                .scatter(w, &mut state, &hit, &bsdf, &mut rng, false)
+                .scatter(w, &mut state, &hit, &bsdf, &mut sampler, false)
                 .is_none()
             {
                 break;
