@@ -230,44 +230,54 @@ struct ContinueArgs {
     preview: PreviewArg,
 }
 
-/// The techniques by name, with their descriptions in `--help`.
-fn technique_parser() -> impl TypedValueParser<Value = Technique> {
-    let names = Technique::ALL.map(|t| PossibleValue::new(t.name()).help(t.description()));
+/// A parser of one of `all` by its name, with the descriptions in `--help`.
+fn by_name<T: Copy + Send + Sync + 'static, const N: usize>(
+    all: [T; N],
+    name: fn(T) -> &'static str,
+    description: fn(T) -> &'static str,
+    unknown: &'static str,
+) -> impl TypedValueParser<Value = T> {
+    let names = all.map(|t| PossibleValue::new(name(t)).help(description(t)));
     PossibleValuesParser::new(names)
-        .try_map(|name| Technique::from_name(&name).ok_or("no such technique"))
+        .try_map(move |given| all.into_iter().find(|&t| name(t) == given).ok_or(unknown))
 }
 
-/// 002's heuristics by name.
+fn technique_parser() -> impl TypedValueParser<Value = Technique> {
+    by_name(
+        Technique::ALL,
+        Technique::name,
+        Technique::description,
+        "no such technique",
+    )
+}
+
+/// 002's heuristics.
 fn density_mis_parser() -> impl TypedValueParser<Value = DensityMis> {
-    let names = DensityMis::ALL.map(|d| PossibleValue::new(d.name()).help(d.description()));
-    PossibleValuesParser::new(names).try_map(|name| {
-        DensityMis::ALL
-            .into_iter()
-            .find(|d| d.name() == name)
-            .ok_or("no such heuristic")
-    })
+    by_name(
+        DensityMis::ALL,
+        DensityMis::name,
+        DensityMis::description,
+        "no such heuristic",
+    )
 }
 
-/// The samplers by name.
 fn sampler_parser() -> impl TypedValueParser<Value = SamplerKind> {
-    let names = SamplerKind::ALL.map(|k| PossibleValue::new(k.name()).help(k.description()));
-    PossibleValuesParser::new(names).try_map(|name| {
-        SamplerKind::ALL
-            .into_iter()
-            .find(|k| k.name() == name)
-            .ok_or("no such sampler")
-    })
+    by_name(
+        SamplerKind::ALL,
+        SamplerKind::name,
+        SamplerKind::description,
+        "no such sampler",
+    )
 }
 
-/// The ray-query backends by name.
+/// The ray-query backends.
 fn accel_parser() -> impl TypedValueParser<Value = AccelKind> {
-    let names = AccelKind::ALL.map(|k| PossibleValue::new(k.name()).help(k.description()));
-    PossibleValuesParser::new(names).try_map(|name| {
-        AccelKind::ALL
-            .into_iter()
-            .find(|k| k.name() == name)
-            .ok_or("no such backend")
-    })
+    by_name(
+        AccelKind::ALL,
+        AccelKind::name,
+        AccelKind::description,
+        "no such backend",
+    )
 }
 
 fn parse_resolution(s: &str) -> Result<[u32; 2], String> {

@@ -4,7 +4,7 @@
 mod common;
 
 use common::{assert_agree, assert_means_agree, floor_view, load, options, render_stats};
-use vmerge::options::Technique;
+use vmerge::options::{SamplerKind, Technique};
 use vmerge::render::render_iterations;
 
 /// The furnace's radiance is exactly 1; each estimate must be within 0.5% of it, a bound the
@@ -69,23 +69,30 @@ fn every_technique_is_independent_of_the_thread_count() {
         Technique::Ppm,
         Technique::Bpm,
         Technique::Vcm,
+        Technique::Upg,
     ] {
-        let mut o = options(technique, 24);
-        o.seed = 5;
-        let render = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| render_iterations(&scene, &o, 2).unwrap())
-        };
-        let (one, many) = (render(1), render(3));
-        let same = one
-            .sum
-            .iter()
-            .zip(&many.sum)
-            .all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits));
-        assert!(same, "{technique:?} depends on the thread count");
+        for sampler in SamplerKind::ALL {
+            let mut o = options(technique, 24);
+            o.seed = 5;
+            o.sampler = sampler;
+            let render = |threads: usize| {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                pool.install(|| render_iterations(&scene, &o, 2).unwrap())
+            };
+            let (one, many) = (render(1), render(3));
+            let same = one
+                .sum
+                .iter()
+                .zip(&many.sum)
+                .all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits));
+            assert!(
+                same,
+                "{technique:?} ({sampler:?}) depends on the thread count"
+            );
+        }
     }
 }
 

@@ -1,5 +1,6 @@
 //! The default Sobol sampler against independent numbers: the same images (no bias), less
-//! noise, the furnace's exact 1, and images that do not depend on the thread count.
+//! noise, and the furnace's exact 1 (tests/bidirectional.rs checks that its images do not
+//! depend on the thread count).
 //!
 //! A Sobol render's iterations are stratified together, so its noise is measured over
 //! independent seeds ([`render_stats_by_seed`]); the independent renders it is compared with are
@@ -9,7 +10,6 @@ mod common;
 
 use common::{assert_agree, floor_view, load, options, render_stats_by_seed, PixelStats};
 use vmerge::options::{RenderOptions, SamplerKind, Technique};
-use vmerge::render::render_iterations;
 
 fn with(sampler: SamplerKind, options: RenderOptions) -> RenderOptions {
     RenderOptions { sampler, ..options }
@@ -99,26 +99,5 @@ fn sobol_passes_the_furnace() {
             (mean - 1.0).abs() < 0.005,
             "{technique}: furnace mean {mean} (se {se})"
         );
-    }
-}
-
-#[test]
-fn sobol_images_do_not_depend_on_the_thread_count() {
-    let scene = load("cornell-spheres");
-    for technique in [
-        Technique::Pt,
-        Technique::Bpt,
-        Technique::Vcm,
-        Technique::Upg,
-    ] {
-        let o = with(SamplerKind::Sobol, options(technique, 24));
-        let render = |threads: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            pool.install(|| render_iterations(&scene, &o, 2).unwrap())
-        };
-        assert_eq!(render(1), render(3), "{technique}");
     }
 }
