@@ -13,6 +13,7 @@
 
 use glam::Vec3;
 use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
 /// Cells further than this from the lowest cell along an axis merge into the last one (queries
 /// there stay exact, they only test more points), so three padded coordinates fit 63 bits.
@@ -24,19 +25,27 @@ const DIGIT_BITS: u32 = 12;
 /// Points per parallel chunk of the key and gather passes.
 const CHUNK: usize = 1 << 12;
 
-/// One table slot: a triplet's key and the range of its points; `EMPTY.key` is no valid key.
-#[derive(Clone, Copy)]
+/// One table slot: a triplet's key (`EMPTY` when free) and the range of its points, begin in
+/// the high half. Atomic so the triplets are inserted by all threads at once: the table is tens
+/// of megabytes on large sparse sets, and one thread inserting alone waits on a cache miss per
+/// triplet while the others idle. Where a key lands depends on the threads; what a lookup
+/// returns does not.
 struct Slot {
-    key: u64,
-    begin: u32,
-    end: u32,
+    key: AtomicU64,
+    range: AtomicU64,
 }
 
-const EMPTY: Slot = Slot {
-    key: u64::MAX,
-    begin: 0,
-    end: 0,
-};
+/// No valid key: keys are below 2^63.
+const EMPTY: u64 = u64::MAX;
+
+impl Slot {
+    fn empty() -> Self {
+        Slot {
+            key: AtomicU64::new(EMPTY),
+            range: AtomicU64::new(0),
+        }
+    }
+}
 
 /// A grid over no points; [`HashGrid::rebuild`] fills it.
 #[derive(Default)]
@@ -101,8 +110,8 @@ impl HashGrid {
         self.ys.clear();
         self.zs.clear();
         self.indices.clear();
-        self.table.clear();
         if n == 0 {
+            self.table.clear();
             return;
         }
         let bits = self.fit_key_space(points);
@@ -193,11 +202,13 @@ impl HashGrid {
         let mask = self.table.len() - 1;
         let mut slot = self.slot_of(key);
         loop {
-            let s = self.table[slot];
-            if s.key == key {
-                return s.begin as usize..s.end as usize;
+            let s = &self.table[slot];
+            let found = s.key.load(Relaxed);
+            if found == key {
+                let range = s.range.load(Relaxed);
+                return (range >> 32) as usize..range as u32 as usize;
             }
-            if s.key == EMPTY.key {
+            if found == EMPTY {
                 return 0..0;
             }
             slot = (slot + 1) & mask;
@@ -307,11 +318,13 @@ impl HashGrid {
             });
 
         self.cells.clear();
-        for (i, pair) in items.windows(2).enumerate() {
-            if pair[0].key() != pair[1].key() {
-                self.cells.push((pair[0].key(), i as u32 + 1));
-            }
-        }
+        self.cells.par_extend(
+            items
+                .par_windows(2)
+                .enumerate()
+                .filter(|(_, pair)| pair[0].key() != pair[1].key())
+                .map(|(i, pair)| (pair[0].key(), i as u32 + 1)),
+        );
         if let Some(last) = items.last() {
             self.cells.push((last.key(), n as u32));
         }
@@ -333,44 +346,66 @@ impl HashGrid {
     fn fill_table(&mut self) {
         let cells = &self.cells;
         // A cell adds the triplets its predecessor's did not: a gap below 3 shares keys.
-        let count: usize = cells
-            .iter()
-            .zip(std::iter::once(None).chain(cells.iter().map(Some)))
-            .map(|(&(cell, _), previous)| match previous {
-                Some(&(previous, _)) => (cell - previous).min(3) as usize,
-                None => 3,
-            })
-            .sum();
+        let new_triplets = |i: usize| match i {
+            0 => 3,
+            _ => (cells[i].0 - cells[i - 1].0).min(3) as usize,
+        };
+        let count: usize = (0..cells.len()).into_par_iter().map(new_triplets).sum();
         // Load at most two thirds: a miss, the commonest lookup on surfaces, ends after a few
         // probes in one or two cache lines.
         let capacity = (count + count / 2).next_power_of_two().max(16);
         self.shift = u64::BITS - capacity.trailing_zeros();
-        self.table.resize(capacity, EMPTY);
-        let mask = capacity - 1;
-        // Cells [first, last) have keys in t - 1 ..= t + 1 for the current triplet t.
-        let (mut first, mut last) = (0, 0);
-        let mut previous = 0;
-        for &(cell, _) in cells {
-            for t in [cell - 1, cell, cell + 1] {
-                if t <= previous {
-                    continue;
-                }
-                previous = t;
-                while cells[first].0 < t - 1 {
-                    first += 1;
-                }
-                while last < cells.len() && cells[last].0 <= t + 1 {
-                    last += 1;
-                }
-                let begin = if first == 0 { 0 } else { cells[first - 1].1 };
-                let end = cells[last - 1].1;
-                let mut slot = (t.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> self.shift) as usize;
-                while self.table[slot].key != EMPTY.key {
-                    slot = (slot + 1) & mask;
-                }
-                self.table[slot] = Slot { key: t, begin, end };
-            }
+        if self.table.len() == capacity {
+            self.table.par_iter().for_each(|slot| {
+                slot.key.store(EMPTY, Relaxed);
+            });
+        } else {
+            self.table.clear();
+            self.table.resize_with(capacity, Slot::empty);
         }
+        let (table, shift) = (&self.table, self.shift);
+        let mask = capacity - 1;
+        cells
+            .par_chunks(CHUNK)
+            .enumerate()
+            .for_each(|(chunk, part)| {
+                let start = chunk * CHUNK;
+                // Triplets up to `previous` are the earlier cells' (keys are above 0).
+                let mut previous = match start {
+                    0 => 0,
+                    _ => cells[start - 1].0 + 1,
+                };
+                // Cells [first, last) have keys in t - 1 ..= t + 1 for the current triplet t;
+                // no earlier chunk's cell is among them, as t - 1 is past its last key.
+                let (mut first, mut last) = (start, start);
+                for &(cell, _) in part {
+                    for t in [cell - 1, cell, cell + 1] {
+                        if t <= previous {
+                            continue;
+                        }
+                        previous = t;
+                        while cells[first].0 < t - 1 {
+                            first += 1;
+                        }
+                        while last < cells.len() && cells[last].0 <= t + 1 {
+                            last += 1;
+                        }
+                        let begin = if first == 0 { 0 } else { cells[first - 1].1 };
+                        let end = cells[last - 1].1;
+                        let mut slot = (t.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> shift) as usize;
+                        while table[slot]
+                            .key
+                            .compare_exchange(EMPTY, t, Relaxed, Relaxed)
+                            .is_err()
+                        {
+                            slot = (slot + 1) & mask;
+                        }
+                        table[slot]
+                            .range
+                            .store(u64::from(begin) << 32 | u64::from(end), Relaxed);
+                    }
+                }
+            });
     }
 
     /// Tests a range of points against the query sphere. Distances are computed a block at a
@@ -555,6 +590,20 @@ mod tests {
                 check(&points, &qs, r);
             }
         }
+    }
+
+    #[test]
+    fn many_chunks_match_brute_force() {
+        // Far more distinct cells than one parallel chunk of the table fill holds, in rows
+        // that cross chunk boundaries.
+        let mut rng = Rng::for_sample(7, 0, 0, Stream::Eye);
+        let points = random_points(&mut rng, 100_000, 0);
+        let mut queries = random_points(&mut rng, 300, 0);
+        queries.extend(points.iter().step_by(500));
+        let mut grid = HashGrid::default();
+        grid.rebuild(&points, 0.02);
+        assert!(grid.cells.len() > 8 * CHUNK);
+        check(&points, &queries, 0.02);
     }
 
     #[test]
