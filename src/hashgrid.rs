@@ -22,14 +22,15 @@ const SPAN_LIMIT: i64 = (1 << 21) - 8;
 const CELL_LIMIT: f32 = (1u32 << 30) as f32;
 /// Bits of one radix-sort digit: the 2^12 counters of a pass (16 KiB) fit L1.
 const DIGIT_BITS: u32 = 12;
-/// Points per parallel chunk of the key and gather passes.
+/// Items per parallel chunk: points in the key and gather passes, cells in the table fill.
 const CHUNK: usize = 1 << 12;
 
 /// One table slot: a triplet's key (`EMPTY` when free) and the range of its points, begin in
 /// the high half. Atomic so the triplets are inserted by all threads at once: the table is tens
 /// of megabytes on large sparse sets, and one thread inserting alone waits on a cache miss per
 /// triplet while the others idle. Where a key lands depends on the threads; what a lookup
-/// returns does not.
+/// returns does not. Relaxed order suffices: the fill has ended (rayon joins its threads)
+/// before any query starts.
 struct Slot {
     key: AtomicU64,
     range: AtomicU64,
@@ -215,11 +216,9 @@ impl HashGrid {
         }
     }
 
-    /// Fibonacci hashing: the top bits of the key times 2^64 / phi, which spreads runs of
-    /// consecutive keys (the triplets of a row) evenly over the table.
     #[inline]
     fn slot_of(&self, key: u64) -> usize {
-        (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> self.shift) as usize
+        fibonacci_slot(key, self.shift)
     }
 
     /// The cells, as offsets from `low`, that every point within the radius of `q` lies in:
@@ -392,7 +391,7 @@ impl HashGrid {
                         }
                         let begin = if first == 0 { 0 } else { cells[first - 1].1 };
                         let end = cells[last - 1].1;
-                        let mut slot = (t.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> shift) as usize;
+                        let mut slot = fibonacci_slot(t, shift);
                         while table[slot]
                             .key
                             .compare_exchange(EMPTY, t, Relaxed, Relaxed)
@@ -514,6 +513,13 @@ fn radix_sort<T: Item>(
         }
         std::mem::swap(items, scratch);
     }
+}
+
+/// Fibonacci hashing: the top bits of the key times 2^64 / phi, which spreads runs of
+/// consecutive keys (the triplets of a row) evenly over a table of 2^(64 - shift) slots.
+#[inline]
+fn fibonacci_slot(key: u64, shift: u32) -> usize {
+    (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> shift) as usize
 }
 
 /// The world-grid cell of a coordinate (000 eq. 2.87), floored so negative coordinates are
