@@ -627,8 +627,7 @@ enum BatchCommand {
 }
 
 fn metric_parser() -> impl TypedValueParser<Value = Metric> {
-    PossibleValuesParser::new(Metric::ALL.map(|m| m.name()))
-        .try_map(|name| Metric::from_name(&name).ok_or("no such metric"))
+    by_name(Metric::ALL, Metric::name, Metric::label, "no such metric")
 }
 
 fn batch(args: BatchArgs) -> Result<()> {

@@ -209,8 +209,7 @@ impl<'a> Bpt<'a> {
             return;
         };
         let light = lights.get(light_index);
-        let [a, b, c, d] = sampler.next_4d();
-        let (u_pos, u_dir) = ([a, b], [c, d]);
+        let [u_pos, u_dir] = sampler.next_4d();
         let Some(e) = light.emit(u_pos, u_dir) else {
             return;
         };

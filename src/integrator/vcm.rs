@@ -225,8 +225,7 @@ impl<'a> VertexCm<'a> {
         let lights = &self.scene().lights;
         let (index, pick) = lights.pick(sampler.next_f32())?;
         let light = lights.get(index);
-        let [a, b, c, d] = sampler.next_4d();
-        let (u_pos, u_dir) = ([a, b], [c, d]);
+        let [u_pos, u_dir] = sampler.next_4d();
         let e = light.emit(u_pos, u_dir)?;
         let emission_pdf_w = e.emission_pdf_w * pick;
         let direct_pdf_a = e.direct_pdf_a * pick;

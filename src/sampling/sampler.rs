@@ -79,16 +79,16 @@ impl Sampler {
         }
     }
 
-    /// Two 2D points stratified jointly (`[0]`, `[1]` and `[2]`, `[3]`), such as a light
-    /// sub-path's start: a point on the light and a direction from it.
+    /// Two 2D points stratified jointly, such as a light sub-path's start: a point on the
+    /// light and a direction from it.
     #[inline]
-    pub fn next_4d(&mut self) -> [f32; 4] {
+    pub fn next_4d(&mut self) -> [[f32; 2]; 2] {
         match self {
-            Sampler::Sobol(s) => s.next_4d(),
-            Sampler::Independent(rng) => {
-                let ([a, b], [c, d]) = (rng.next_2d(), rng.next_2d());
-                [a, b, c, d]
+            Sampler::Sobol(s) => {
+                let [a, b, c, d] = s.next_4d();
+                [[a, b], [c, d]]
             }
+            Sampler::Independent(rng) => [rng.next_2d(), rng.next_2d()],
         }
     }
 
