@@ -24,6 +24,8 @@ const CELL_LIMIT: f32 = (1u32 << 30) as f32;
 const DIGIT_BITS: u32 = 12;
 /// Items per parallel chunk: points in the key and gather passes, cells in the table fill.
 const CHUNK: usize = 1 << 12;
+/// Fewest items per part of a parallel radix-sort pass: smaller sets sort on one thread.
+const SORT_PART_MIN: usize = 1 << 15;
 
 /// One table slot: a triplet's key (`EMPTY` when free) and the range of its points, begin in
 /// the high half. Atomic so the triplets are inserted by all threads at once: the table is tens
@@ -476,6 +478,11 @@ impl Item for u128 {
 
 /// Sorts `items` stably by key: a least significant digit radix sort over the `bits` key bits
 /// in use, skipping digits all keys share; `scratch` and `histograms` are its buffers.
+///
+/// Each pass runs on all threads: the items are cut into contiguous parts, each part counts
+/// its digits, and each part's items of a bucket go after the earlier parts' items of that
+/// bucket. So the order is that of a one-thread stable sort, whatever the number of parts, and
+/// every part writes only to its own slices of `scratch`.
 fn radix_sort<T: Item>(
     items: &mut Vec<T>,
     scratch: &mut Vec<T>,
@@ -487,30 +494,59 @@ fn radix_sort<T: Item>(
     let digit_bits = bits.max(1).div_ceil(passes);
     let buckets = 1usize << digit_bits;
     let mask = buckets as u64 - 1;
+    let part_len = n
+        .div_ceil(rayon::current_num_threads())
+        .max(SORT_PART_MIN)
+        .max(1);
+    let parts = n.div_ceil(part_len);
     histograms.clear();
-    histograms.resize(passes as usize * buckets, 0);
-    for item in items.iter() {
-        let key = item.key();
-        for (pass, histogram) in histograms.chunks_exact_mut(buckets).enumerate() {
-            histogram[((key >> (pass as u32 * digit_bits)) & mask) as usize] += 1;
-        }
-    }
+    histograms.resize(parts * buckets, 0);
     scratch.resize(n, T::default());
-    for (pass, histogram) in histograms.chunks_exact_mut(buckets).enumerate() {
-        if histogram.iter().any(|&count| count as usize == n) {
+    for pass in 0..passes {
+        let shift = pass * digit_bits;
+        let digit = |item: T| ((item.key() >> shift) & mask) as usize;
+        histograms
+            .par_chunks_mut(buckets)
+            .zip(items.par_chunks(part_len))
+            .for_each(|(histogram, part)| {
+                histogram.fill(0);
+                for &item in part {
+                    histogram[digit(item)] += 1;
+                }
+            });
+        let total = |bucket: usize| -> usize {
+            (0..parts)
+                .map(|part| histograms[part * buckets + bucket] as usize)
+                .sum()
+        };
+        if (0..buckets).any(|bucket| total(bucket) == n) {
             continue;
         }
-        // Counts to the first position of each bucket.
-        let mut sum = 0;
-        for count in histogram.iter_mut() {
-            (*count, sum) = (sum, sum + *count);
+        // Slices of `scratch` in output order: bucket by bucket, part by part within a bucket.
+        let mut targets: Vec<Vec<&mut [T]>> =
+            (0..parts).map(|_| Vec::with_capacity(buckets)).collect();
+        let mut rest = scratch.as_mut_slice();
+        for bucket in 0..buckets {
+            for (part, part_targets) in targets.iter_mut().enumerate() {
+                let len = histograms[part * buckets + bucket] as usize;
+                let (target, tail) = std::mem::take(&mut rest).split_at_mut(len);
+                part_targets.push(target);
+                rest = tail;
+            }
         }
-        let shift = pass as u32 * digit_bits;
-        for &item in items.iter() {
-            let bucket = &mut histogram[((item.key() >> shift) & mask) as usize];
-            scratch[*bucket as usize] = item;
-            *bucket += 1;
-        }
+        targets
+            .into_par_iter()
+            .zip(items.par_chunks(part_len))
+            .for_each(|(mut targets, part)| {
+                for &item in part {
+                    let target = &mut targets[digit(item)];
+                    // Never empty: the slice is as long as the part's count of the bucket.
+                    if let Some((first, tail)) = std::mem::take(target).split_first_mut() {
+                        *first = item;
+                        *target = tail;
+                    }
+                }
+            });
         std::mem::swap(items, scratch);
     }
 }
@@ -705,7 +741,8 @@ mod tests {
     #[test]
     fn order_independent_of_threads() {
         let mut rng = Rng::for_sample(5, 0, 0, Stream::Eye);
-        let points = random_points(&mut rng, 50_000, 1);
+        // Four threads sort in four parts of 37,501 items, the last one shorter.
+        let points = random_points(&mut rng, 150_001, 1);
         let queries = random_points(&mut rng, 500, 1);
         let results = |grid: &HashGrid| {
             let mut out = Vec::new();
@@ -714,12 +751,14 @@ mod tests {
             }
             out
         };
-        let single = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .expect("thread pool");
-        let one = single.install(|| HashGrid::build(&points, 0.05));
-        let many = HashGrid::build(&points, 0.05);
+        let pool = |threads| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("thread pool")
+        };
+        let one = pool(1).install(|| HashGrid::build(&points, 0.05));
+        let many = pool(4).install(|| HashGrid::build(&points, 0.05));
         let found = results(&one);
         assert!(found.len() > 10 * queries.len());
         assert_eq!(found, results(&many));

@@ -475,6 +475,8 @@ impl Integrator for Bpt<'_> {
         let chunks: Vec<Chunk> = (0..pixels)
             .into_par_iter()
             .step_by(CHUNK)
+            // A task per chunk: no thread waits long at the iteration's end for another's last.
+            .with_max_len(1)
             .map(|start| {
                 let mut stats = IterationStats::default();
                 let mut splats = Vec::new();

@@ -146,6 +146,8 @@ impl Integrator for PathTracer<'_> {
         frame
             .par_chunks_mut(width)
             .enumerate()
+            // A task per row: no thread waits long at the iteration's end for another's last.
+            .with_max_len(1)
             .map(|(y, row)| {
                 let mut stats = IterationStats::default();
                 for (x, pixel) in row.iter_mut().enumerate() {

@@ -169,9 +169,15 @@ impl LightPaths {
             stats.dropped_samples += chunk.stats.dropped_samples;
         }
         // The copy runs on every thread, into storage of last iteration's length resized
-        // (the filler is overwritten): a serial copy would hold up the other threads.
+        // (the filler is overwritten): a serial copy would hold up the other threads. Growth
+        // is filled on every thread too: the first iteration's pages are tens of megabytes.
         match chunks.iter().find_map(|c| c.vertices.first()) {
-            Some(&filler) => self.vertices.resize(total, filler),
+            Some(&filler) if total > self.vertices.len() => {
+                let grow = total - self.vertices.len();
+                self.vertices
+                    .par_extend(rayon::iter::repeat_n(filler, grow));
+            }
+            Some(_) => self.vertices.truncate(total),
             None => self.vertices.clear(),
         }
         let mut rest = self.vertices.as_mut_slice();

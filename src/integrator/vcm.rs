@@ -41,6 +41,8 @@ use rayon::prelude::*;
 
 /// Light paths traced by one parallel task. Fixed, so results do not depend on threads.
 const LIGHT_CHUNK: usize = 256;
+/// Most pixels one parallel task of the eye pass traces.
+const EYE_TASK: usize = 256;
 
 /// Which techniques run and are weighted against each other.
 #[derive(Clone, Copy, Debug)]
@@ -391,14 +393,20 @@ impl<'a> VertexCm<'a> {
         chunks: &mut Vec<LightChunk>,
     ) {
         chunks.resize_with(paths.div_ceil(LIGHT_CHUNK), LightChunk::default);
-        chunks.par_iter_mut().enumerate().for_each(|(c, chunk)| {
-            chunk.clear();
-            let start = c * LIGHT_CHUNK;
-            for index in start..(start + LIGHT_CHUNK).min(paths) {
-                self.trace_light_path(w, iteration, index, chunk);
-                chunk.ends.push(chunk.vertices.len() as u32);
-            }
-        });
+        // One task per chunk (rayon would otherwise run a thread's share of chunks as one task
+        // nobody can take over): no thread waits long at the pass's end.
+        chunks
+            .par_iter_mut()
+            .enumerate()
+            .with_max_len(1)
+            .for_each(|(c, chunk)| {
+                chunk.clear();
+                let start = c * LIGHT_CHUNK;
+                for index in start..(start + LIGHT_CHUNK).min(paths) {
+                    self.trace_light_path(w, iteration, index, chunk);
+                    chunk.ends.push(chunk.vertices.len() as u32);
+                }
+            });
     }
 
     /// A continued render starts with an empty density map: the light passes of the
@@ -807,6 +815,7 @@ impl Integrator for VertexCm<'_> {
         let eye_stats = frame
             .par_iter_mut()
             .enumerate()
+            .with_max_len(EYE_TASK)
             .map(|(pixel, value)| {
                 let mut stats = IterationStats::default();
                 let color = self.trace_eye_path(&pass, pixel, &mut stats);
