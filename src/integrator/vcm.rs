@@ -43,6 +43,8 @@ use rayon::prelude::*;
 const LIGHT_CHUNK: usize = 256;
 /// Most pixels one parallel task of the eye pass traces.
 const EYE_TASK: usize = 256;
+/// Light vertices a merge gathers before evaluating them (at most 64: one bit each in a mask).
+const MERGE_BATCH: usize = 32;
 
 /// Which techniques run and are weighted against each other.
 #[derive(Clone, Copy, Debug)]
@@ -630,30 +632,51 @@ impl<'a> VertexCm<'a> {
     ) -> Rgb {
         let max_length = self.ctx.max_path_length();
         let mut sum = Rgb::BLACK;
+        let mut merge_batch = |slots: &[u32]| {
+            // Path lengths of the whole batch first: their loads (the vertices are far apart
+            // in memory, each likely a cache miss) overlap instead of each waiting behind the
+            // previous vertex's BSDF evaluation, and the rejected ones cost nothing more.
+            let mut kept = 0u64;
+            for (i, &slot) in slots.iter().enumerate() {
+                let segments = vertices[slot as usize]
+                    .path_length
+                    .saturating_add(state.path_length);
+                kept |= u64::from(segments <= max_length && !self.too_short(segments)) << i;
+            }
+            while kept != 0 {
+                let lv = &vertices[slots[kept.trailing_zeros() as usize] as usize];
+                kept &= kept - 1;
+                let eval = bsdf.eval(lv.wo);
+                if eval.f.is_black() {
+                    continue;
+                }
+                // PPM takes its one merge per eye path unweighted: no other technique competes.
+                let weight = if self.modes.ppm {
+                    1.0
+                } else {
+                    w.merge(
+                        &lv.mis,
+                        &state.mis,
+                        (eval.pdf_w, eval.rev_pdf_w),
+                        w.vm_factor,
+                        state.density,
+                    )
+                };
+                sum += eval.f * lv.throughput * weight;
+            }
+        };
+        // The points found, in query order, a batch at a time.
+        let mut batch = [0u32; MERGE_BATCH];
+        let mut len = 0;
         grid.query_slots(hit.position, |slot, _| {
-            let lv = &vertices[slot];
-            let segments = lv.path_length.saturating_add(state.path_length);
-            if segments > max_length || self.too_short(segments) {
-                return;
+            batch[len] = slot as u32;
+            len += 1;
+            if len == MERGE_BATCH {
+                merge_batch(&batch);
+                len = 0;
             }
-            let eval = bsdf.eval(lv.wo);
-            if eval.f.is_black() {
-                return;
-            }
-            // PPM takes its one merge per eye path unweighted: no other technique competes.
-            let weight = if self.modes.ppm {
-                1.0
-            } else {
-                w.merge(
-                    &lv.mis,
-                    &state.mis,
-                    (eval.pdf_w, eval.rev_pdf_w),
-                    w.vm_factor,
-                    state.density,
-                )
-            };
-            sum += eval.f * lv.throughput * weight;
         });
+        merge_batch(&batch[..len]);
         sum
     }
 
