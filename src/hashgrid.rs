@@ -490,47 +490,68 @@ fn radix_sort<T: Item>(
     bits: u32,
 ) {
     let n = items.len();
-    let passes = bits.max(1).div_ceil(DIGIT_BITS);
-    let digit_bits = bits.max(1).div_ceil(passes);
+    let passes = bits.max(1).div_ceil(DIGIT_BITS) as usize;
+    let digit_bits = bits.max(1).div_ceil(passes as u32);
     let buckets = 1usize << digit_bits;
-    let mask = buckets as u64 - 1;
+    let digit = move |item: T, pass: usize| {
+        ((item.key() >> (pass as u32 * digit_bits)) & (buckets as u64 - 1)) as usize
+    };
     let part_len = n
         .div_ceil(rayon::current_num_threads())
         .max(SORT_PART_MIN)
         .max(1);
     let parts = n.div_ceil(part_len);
+    // Per part, the counts of every pass's digits, in one read. Once a pass has moved items
+    // between parts only their sums over parts stay right, and a later pass counts again.
+    let pass_len = passes * buckets;
     histograms.clear();
-    histograms.resize(parts * buckets, 0);
-    scratch.resize(n, T::default());
-    for pass in 0..passes {
-        let shift = pass * digit_bits;
-        let digit = |item: T| ((item.key() >> shift) & mask) as usize;
-        histograms
-            .par_chunks_mut(buckets)
-            .zip(items.par_chunks(part_len))
-            .for_each(|(histogram, part)| {
-                histogram.fill(0);
-                for &item in part {
-                    histogram[digit(item)] += 1;
+    histograms.resize(parts * pass_len, 0);
+    histograms
+        .par_chunks_mut(pass_len)
+        .zip(items.par_chunks(part_len))
+        .for_each(|(histogram, part)| {
+            for &item in part {
+                for (pass, counts) in histogram.chunks_exact_mut(buckets).enumerate() {
+                    counts[digit(item, pass)] += 1;
                 }
-            });
-        let total = |bucket: usize| -> usize {
+            }
+        });
+    let count = |histograms: &[u32], part: usize, pass: usize, bucket: usize| {
+        histograms[part * pass_len + pass * buckets + bucket] as usize
+    };
+    scratch.resize(n, T::default());
+    let mut moved = false;
+    for pass in 0..passes {
+        let total = |bucket| -> usize {
             (0..parts)
-                .map(|part| histograms[part * buckets + bucket] as usize)
+                .map(|part| count(histograms, part, pass, bucket))
                 .sum()
         };
         if (0..buckets).any(|bucket| total(bucket) == n) {
             continue;
         }
-        // Slices of `scratch` in output order: bucket by bucket, part by part within a bucket.
-        let mut targets: Vec<Vec<&mut [T]>> =
+        if moved && parts > 1 {
+            histograms
+                .par_chunks_mut(pass_len)
+                .zip(items.par_chunks(part_len))
+                .for_each(|(histogram, part)| {
+                    let counts = &mut histogram[pass * buckets..(pass + 1) * buckets];
+                    counts.fill(0);
+                    for &item in part {
+                        counts[digit(item, pass)] += 1;
+                    }
+                });
+        }
+        // Each part's slices of `scratch` in output order: bucket by bucket, part by part
+        // within a bucket.
+        let mut targets: Vec<Vec<std::slice::IterMut<T>>> =
             (0..parts).map(|_| Vec::with_capacity(buckets)).collect();
         let mut rest = scratch.as_mut_slice();
         for bucket in 0..buckets {
             for (part, part_targets) in targets.iter_mut().enumerate() {
-                let len = histograms[part * buckets + bucket] as usize;
+                let len = count(histograms, part, pass, bucket);
                 let (target, tail) = std::mem::take(&mut rest).split_at_mut(len);
-                part_targets.push(target);
+                part_targets.push(target.iter_mut());
                 rest = tail;
             }
         }
@@ -539,15 +560,14 @@ fn radix_sort<T: Item>(
             .zip(items.par_chunks(part_len))
             .for_each(|(mut targets, part)| {
                 for &item in part {
-                    let target = &mut targets[digit(item)];
-                    // Never empty: the slice is as long as the part's count of the bucket.
-                    if let Some((first, tail)) = std::mem::take(target).split_first_mut() {
-                        *first = item;
-                        *target = tail;
+                    // Never exhausted: the slice is as long as the part's count of the bucket.
+                    if let Some(target) = targets[digit(item, pass)].next() {
+                        *target = item;
                     }
                 }
             });
         std::mem::swap(items, scratch);
+        moved = true;
     }
 }
 
