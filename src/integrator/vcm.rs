@@ -45,6 +45,7 @@ const LIGHT_CHUNK: usize = 256;
 const EYE_TASK: usize = 256;
 /// Light vertices a merge gathers before evaluating them (at most 64: one bit each in a mask).
 const MERGE_BATCH: usize = 32;
+const _: () = assert!(MERGE_BATCH <= u64::BITS as usize);
 
 /// Which techniques run and are weighted against each other.
 #[derive(Clone, Copy, Debug)]
