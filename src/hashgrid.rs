@@ -11,7 +11,7 @@
 //! The cells are those of the world grid (floor(p / r)), whatever the points' extent, so the
 //! order of query results depends only on the points, never on threads.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
@@ -62,6 +62,9 @@ pub struct HashGrid {
     low: [i64; 3],
     /// The highest cell offset from `low` in use (at most `SPAN_LIMIT`), per axis.
     span: [i64; 3],
+    /// `low` and `span` as floats, for [`HashGrid::key_of`].
+    low_f: Vec3A,
+    span_f: Vec3A,
     /// Key steps of one cell along y and z (x's is 1).
     stride_y: u64,
     stride_z: u64,
@@ -275,6 +278,8 @@ impl HashGrid {
             self.span[axis] =
                 (cell(max[axis], self.inv_cell) - self.low[axis]).clamp(0, SPAN_LIMIT);
         }
+        self.low_f = Vec3A::from_array(self.low.map(|low| low as f32));
+        self.span_f = Vec3A::from_array(self.span.map(|span| span as f32));
         let width = |axis: usize| self.span[axis] as u64 + 5;
         self.stride_y = width(0);
         self.stride_z = width(0) * width(1);
@@ -331,14 +336,21 @@ impl HashGrid {
         }
     }
 
-    /// The key of the cell of a point. Offsets are clamped below too: a NaN coordinate lands
-    /// in a valid cell, and no distance test accepts it.
+    /// The key of the cell of a point: [`cell`]'s offsets from `low`, clamped to `span`, on
+    /// all three axes at once in SIMD lanes (in integers, clamps and the floor's correction
+    /// cost a point as much as its two sort passes). Exact: the floor of a coordinate clamped
+    /// to +-2^30 is a whole f32, so are `low` and `span`, and a difference rounded beyond 2^24
+    /// is clamped to `span` (at most 2^21) either way. A NaN coordinate lands in a valid cell,
+    /// and no distance test accepts it.
     #[inline]
     fn key_of(&self, p: Vec3) -> u64 {
-        let padded = |axis: usize| {
-            ((cell(p[axis], self.inv_cell) - self.low[axis]).clamp(0, self.span[axis]) + 2) as u64
-        };
-        padded(0) + padded(1) * self.stride_y + padded(2) * self.stride_z
+        let limit = Vec3A::splat(CELL_LIMIT);
+        let floor = (Vec3A::from(p) * self.inv_cell)
+            .clamp(-limit, limit)
+            .floor();
+        let offset = (floor - self.low_f).clamp(Vec3A::ZERO, self.span_f);
+        let padded = |v: f32| v as u64 + 2;
+        padded(offset.x) + padded(offset.y) * self.stride_y + padded(offset.z) * self.stride_z
     }
 
     /// Inserts every triplet once, in key order: the triplet centred on key t spans the cells
@@ -736,6 +748,33 @@ mod tests {
                     brute_force(&points, q, r),
                     "case {case}, query {q}, r {r}"
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn simd_keys_match_integer_cells() {
+        // `key_of` in float lanes against the cells of `cell` offset and clamped in integers.
+        let mut rng = Rng::for_sample(8, 0, 0, Stream::Eye);
+        let mut points = vec![
+            Vec3::new(3.0e38, -3.0e38, 0.0),
+            Vec3::new(-1.0e30, 5.0, 1.0e20),
+            Vec3::new(1.0e9, 1.0e9, -1.0e9),
+            Vec3::new(1.0e9 + 128.0, -0.0, -1.0e9),
+        ];
+        for r in [1e-3f32, 0.05, 1.0] {
+            points.extend(awkward_points(&mut rng, 2000, r));
+        }
+        for r in [1e-3f32, 0.05, 1.0, 1e10] {
+            let mut grid = HashGrid::default();
+            grid.rebuild(&points, r);
+            for &p in &points {
+                let padded = |axis: usize| {
+                    ((cell(p[axis], grid.inv_cell) - grid.low[axis]).clamp(0, grid.span[axis]) + 2)
+                        as u64
+                };
+                let expected = padded(0) + padded(1) * grid.stride_y + padded(2) * grid.stride_z;
+                assert_eq!(grid.key_of(p), expected, "{p} at r {r}");
             }
         }
     }
