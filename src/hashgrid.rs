@@ -24,6 +24,9 @@ const CELL_LIMIT: f32 = (1u32 << 30) as f32;
 const DIGIT_BITS: u32 = 12;
 /// Items per parallel chunk: points in the key and gather passes, cells in the table fill.
 const CHUNK: usize = 1 << 12;
+/// Most points in a batch of [`HashGrid::query_batches`]: one bit each in [`kept`]'s mask.
+pub const QUERY_BATCH: usize = 32;
+const _: () = assert!(QUERY_BATCH <= u64::BITS as usize);
 /// Fewest items per part of a parallel radix-sort pass: smaller sets sort on one thread.
 const SORT_PART_MIN: usize = 1 << 15;
 
@@ -158,6 +161,41 @@ impl HashGrid {
     #[inline]
     pub fn query(&self, q: Vec3, mut visit: impl FnMut(usize, f32)) {
         self.query_slots(q, |slot, d2| visit(self.indices[slot] as usize, d2));
+    }
+
+    /// [`Self::query_slots`] a batch at a time: the slots of up to [`QUERY_BATCH`] points found,
+    /// in the same order. A caller that reads a record of each point can read what decides
+    /// whether it keeps the point for the whole batch first ([`kept`]), so those loads (points
+    /// far apart in memory, each likely a cache miss) overlap instead of each waiting behind
+    /// the work on the previous point.
+    #[inline]
+    pub fn query_slot_batches(&self, q: Vec3, mut visit: impl FnMut(&[u32])) {
+        let mut batch = [0u32; QUERY_BATCH];
+        let mut len = 0;
+        self.query_slots(q, |slot, _| {
+            batch[len] = slot as u32;
+            len += 1;
+            if len == QUERY_BATCH {
+                visit(&batch);
+                len = 0;
+            }
+        });
+        if len > 0 {
+            visit(&batch[..len]);
+        }
+    }
+
+    /// [`Self::query_slot_batches`] with each point named by its index in the input, as
+    /// [`Self::query`] names it.
+    #[inline]
+    pub fn query_batches(&self, q: Vec3, mut visit: impl FnMut(&[u32])) {
+        self.query_slot_batches(q, |slots| {
+            let mut indices = [0u32; QUERY_BATCH];
+            for (index, &slot) in indices.iter_mut().zip(slots) {
+                *index = self.indices[slot as usize];
+            }
+            visit(&indices[..slots.len()]);
+        });
     }
 
     /// [`Self::query`] that names each point by its slot in [`Self::indices`], in the same
@@ -456,6 +494,22 @@ impl HashGrid {
     }
 }
 
+/// The items of a query batch that `keep` accepts, in order; `keep` runs on the whole batch
+/// before the first is returned, so its loads overlap.
+pub fn kept(batch: &[u32], mut keep: impl FnMut(u32) -> bool) -> impl Iterator<Item = u32> + '_ {
+    let mut mask = 0u64;
+    for (bit, &item) in batch.iter().enumerate() {
+        mask |= u64::from(keep(item)) << bit;
+    }
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let bit = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            batch[bit]
+        })
+    })
+}
+
 /// A cell key and a point index packed into one integer (key above, index in the low 32 bits),
 /// so the sort moves one value per point.
 trait Item: Copy + Default + Send + Sync {
@@ -750,6 +804,32 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn batches_match_query() {
+        let mut rng = Rng::for_sample(9, 0, 0, Stream::Eye);
+        let points = random_points(&mut rng, 20_000, 1);
+        let grid = HashGrid::build(&points, 0.1);
+        let mut longest = 0;
+        for &q in points.iter().take(200) {
+            let mut expected = Vec::new();
+            grid.query(q, |i, _| expected.push(i as u32));
+            let (mut batched, mut odd) = (Vec::new(), Vec::new());
+            grid.query_batches(q, |batch| {
+                assert!(!batch.is_empty() && batch.len() <= QUERY_BATCH);
+                batched.extend_from_slice(batch);
+                odd.extend(kept(batch, |i| i % 2 == 1));
+            });
+            longest = longest.max(expected.len());
+            assert_eq!(batched, expected);
+            expected.retain(|i| i % 2 == 1);
+            assert_eq!(odd, expected);
+        }
+        assert!(
+            longest > 2 * QUERY_BATCH,
+            "some queries span several batches"
+        );
     }
 
     #[test]

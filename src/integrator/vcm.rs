@@ -32,7 +32,7 @@ use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
-use crate::hashgrid::HashGrid;
+use crate::hashgrid::{kept, HashGrid};
 use crate::options::{RenderOptions, Technique};
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
@@ -43,9 +43,6 @@ use rayon::prelude::*;
 const LIGHT_CHUNK: usize = 256;
 /// Most pixels one parallel task of the eye pass traces.
 const EYE_TASK: usize = 256;
-/// Light vertices a merge gathers before evaluating them (at most 64: one bit each in a mask).
-const MERGE_BATCH: usize = 32;
-const _: () = assert!(MERGE_BATCH <= u64::BITS as usize);
 
 /// Which techniques run and are weighted against each other.
 #[derive(Clone, Copy, Debug)]
@@ -633,20 +630,15 @@ impl<'a> VertexCm<'a> {
     ) -> Rgb {
         let max_length = self.ctx.max_path_length();
         let mut sum = Rgb::BLACK;
-        let mut merge_batch = |slots: &[u32]| {
-            // Path lengths of the whole batch first: their loads (the vertices are far apart
-            // in memory, each likely a cache miss) overlap instead of each waiting behind the
-            // previous vertex's BSDF evaluation, and the rejected ones cost nothing more.
-            let mut kept = 0u64;
-            for (i, &slot) in slots.iter().enumerate() {
+        grid.query_slot_batches(hit.position, |batch| {
+            let within_bounds = |slot: u32| {
                 let segments = vertices[slot as usize]
                     .path_length
                     .saturating_add(state.path_length);
-                kept |= u64::from(segments <= max_length && !self.too_short(segments)) << i;
-            }
-            while kept != 0 {
-                let lv = &vertices[slots[kept.trailing_zeros() as usize] as usize];
-                kept &= kept - 1;
+                segments <= max_length && !self.too_short(segments)
+            };
+            for slot in kept(batch, within_bounds) {
+                let lv = &vertices[slot as usize];
                 let eval = bsdf.eval(lv.wo);
                 if eval.f.is_black() {
                     continue;
@@ -665,19 +657,7 @@ impl<'a> VertexCm<'a> {
                 };
                 sum += eval.f * lv.throughput * weight;
             }
-        };
-        // The points found, in query order, a batch at a time.
-        let mut batch = [0u32; MERGE_BATCH];
-        let mut len = 0;
-        grid.query_slots(hit.position, |slot, _| {
-            batch[len] = slot as u32;
-            len += 1;
-            if len == MERGE_BATCH {
-                merge_batch(&batch);
-                len = 0;
-            }
         });
-        merge_batch(&batch[..len]);
         sum
     }
 

@@ -14,7 +14,7 @@ use super::acceptance::{AngularBound, Estimator, Outcome, StoredVerticesOnly, Te
 use crate::accel::Ray;
 use crate::bsdf::Bsdf;
 use crate::color::Rgb;
-use crate::hashgrid::HashGrid;
+use crate::hashgrid::{kept, HashGrid};
 use crate::sampling::{Rng, Stream};
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
@@ -70,15 +70,13 @@ impl<'s> UpgMerges<'s> {
         stats: &mut IterationStats,
     ) -> Rgb {
         let vertices = gathered.vertices;
-        gathered.grid.query(hit.position, |i, _| {
-            let photon = &vertices[i];
-            if !photon.after_surface {
-                return;
-            }
+        let gathers = |i: u32| {
+            let i = i as usize;
+            vertices[i].after_surface
+                && self.keeps(vertices[i - 1].path_length + 1 + state.path_length)
+        };
+        let mut gather = |i: usize| {
             let q = &vertices[i - 1];
-            if !self.keeps(q.path_length + 1 + state.path_length) {
-                return;
-            }
             let Some(q_bsdf) = q.bsdf(self.scene) else {
                 return;
             };
@@ -108,6 +106,9 @@ impl<'s> UpgMerges<'s> {
             );
             let roulette = self.roulette_probability(&q_bsdf, q.path_length);
             tentative.push(bound, q.throughput * link.value * (weight / roulette));
+        };
+        gathered.grid.query_batches(hit.position, |batch| {
+            kept(batch, gathers).for_each(|i| gather(i as usize));
         });
         self.estimate(tentative, stats)
     }
@@ -126,11 +127,9 @@ impl<'s> UpgMerges<'s> {
         stats: &mut IterationStats,
     ) -> Rgb {
         let vertices = gathered.vertices;
-        gathered.grid.query(position, |i, _| {
+        let gathers = |i: u32| self.keeps(vertices[i as usize].path_length + 1 + prev.path_length);
+        let mut gather = |i: usize| {
             let photon = &vertices[i];
-            if !self.keeps(photon.path_length + 1 + prev.path_length) {
-                return;
-            }
             let Some(p_bsdf) = photon.bsdf(self.scene) else {
                 return;
             };
@@ -169,6 +168,9 @@ impl<'s> UpgMerges<'s> {
                 bound,
                 prev.throughput * photon.throughput * link.value * (weight / roulette),
             );
+        };
+        gathered.grid.query_batches(position, |batch| {
+            kept(batch, gathers).for_each(|i| gather(i as usize));
         });
         self.estimate(tentative, stats)
     }
