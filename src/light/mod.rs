@@ -21,8 +21,10 @@ use glam::Vec3;
 use std::f32::consts::{FRAC_1_PI, PI};
 use std::sync::Arc;
 
+mod bounds;
 mod env;
 
+pub use bounds::SceneBounds;
 pub use env::{EnvLight, EnvMapDesc};
 
 /// Background radiance L(w) = horizon + (zenith - horizon) * max(0, w . up).
@@ -54,18 +56,18 @@ pub enum Light {
     /// `intensity` in W/sr, uniform in all directions.
     Point { position: Vec3, intensity: Rgb },
     /// Parallel light travelling along the unit `direction`; `irradiance` in W/m^2 on a
-    /// perpendicular surface. `scene` is the scene's bounding sphere (centre, radius).
+    /// perpendicular surface. `scene` is where its light sub-paths start.
     Directional {
         direction: Vec3,
         irradiance: Rgb,
-        scene: (Vec3, f32),
+        scene: SceneBounds,
     },
-    /// The gradient sky, an infinite light around the scene's bounding sphere.
-    Sky { sky: SkyDesc, scene: (Vec3, f32) },
+    /// The gradient sky, an infinite light around the scene.
+    Sky { sky: SkyDesc, scene: SceneBounds },
     /// An environment image as the sky, likewise infinite.
     Env {
         env: Arc<EnvLight>,
-        scene: (Vec3, f32),
+        scene: SceneBounds,
     },
 }
 
@@ -167,14 +169,19 @@ impl Light {
             } => radiance.average() * 4.0 * PI * radius * radius * PI,
             Light::Point { intensity, .. } => intensity.average() * 4.0 * PI,
             Light::Directional {
-                irradiance, scene, ..
-            } => irradiance.average() * PI * scene.1 * scene.1,
+                direction,
+                irradiance,
+                scene,
+            } => irradiance.average() * scene.projected_area(*direction),
+            // The power entering the box: the mean radiance, times pi (the cosine-weighted
+            // hemisphere), times the mean silhouette.
             Light::Sky { sky, scene } => {
                 let mean = 0.5 * (sky.horizon + (sky.horizon + sky.zenith) * 0.5);
-                mean.average() * PI * PI * scene.1 * scene.1
+                mean.average() * PI * scene.mean_projected_area()
             }
-            // The same measure: the mean radiance over the sphere, times pi, times the disk.
-            Light::Env { env, scene } => env.integral() / (4.0 * PI) * PI * PI * scene.1 * scene.1,
+            Light::Env { env, scene } => {
+                env.integral() / (4.0 * PI) * PI * scene.mean_projected_area()
+            }
         }
     }
 
@@ -240,11 +247,11 @@ impl Light {
             } => Some(Illumination {
                 dir_to_light: -direction,
                 distance: f32::INFINITY,
-                position: receiver - direction * 2.0 * scene.1,
+                position: receiver - direction * 2.0 * scene.radius(),
                 normal: direction,
                 radiance: irradiance,
                 direct_pdf_w: 1.0,
-                emission_pdf_w: disk_pdf(scene.1),
+                emission_pdf_w: scene.origin_pdf(direction),
                 cos_at_light: 1.0,
             }),
             Light::Sky { sky, scene } => {
@@ -253,11 +260,11 @@ impl Light {
                 Some(Illumination {
                     dir_to_light: dir,
                     distance: f32::INFINITY,
-                    position: receiver + dir * 2.0 * scene.1,
+                    position: receiver + dir * 2.0 * scene.radius(),
                     normal: -dir,
                     radiance: sky_radiance(&sky, dir),
                     direct_pdf_w,
-                    emission_pdf_w: direct_pdf_w * disk_pdf(scene.1),
+                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir),
                     cos_at_light: 1.0,
                 })
             }
@@ -266,11 +273,11 @@ impl Light {
                 Some(Illumination {
                     dir_to_light: dir,
                     distance: f32::INFINITY,
-                    position: receiver + dir * 2.0 * scene.1,
+                    position: receiver + dir * 2.0 * scene.radius(),
                     normal: -dir,
                     radiance,
                     direct_pdf_w,
-                    emission_pdf_w: direct_pdf_w * disk_pdf(scene.1),
+                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir),
                     cos_at_light: 1.0,
                 })
             }
@@ -305,27 +312,27 @@ impl Light {
                 irradiance,
                 scene,
             } => Some(Emission {
-                position: disk_origin(scene, direction, u_pos),
+                position: scene.origin(direction, u_pos),
                 dir: direction,
                 normal: direction,
                 energy: irradiance,
                 direct_pdf_a: 1.0,
-                emission_pdf_w: disk_pdf(scene.1),
+                emission_pdf_w: scene.origin_pdf(direction),
                 cos_at_light: 1.0,
             }),
             Light::Sky { sky, scene } => {
-                // 001 sec. 5.1: a direction towards the sky, then a point on the disk of the
-                // scene's bounding sphere facing it; the pdf of the point is per area of the disk.
+                // 001 sec. 5.1: a direction towards the sky, then a point on the scene's
+                // silhouette facing it; the pdf of the point is per area of the plane.
                 let to_sky = sampling::uniform_sphere(u_dir);
                 let dir = -to_sky;
                 let direct_pdf_w = sampling::UNIFORM_SPHERE_PDF;
                 Some(Emission {
-                    position: disk_origin(scene, dir, u_pos),
+                    position: scene.origin(dir, u_pos),
                     dir,
                     normal: dir,
                     energy: sky_radiance(&sky, to_sky),
                     direct_pdf_a: direct_pdf_w,
-                    emission_pdf_w: direct_pdf_w * disk_pdf(scene.1),
+                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir),
                     cos_at_light: 1.0,
                 })
             }
@@ -334,12 +341,12 @@ impl Light {
                 let (to_sky, radiance, direct_pdf_w) = env.sample(u_dir)?;
                 let dir = -to_sky;
                 Some(Emission {
-                    position: disk_origin(scene, dir, u_pos),
+                    position: scene.origin(dir, u_pos),
                     dir,
                     normal: dir,
                     energy: radiance,
                     direct_pdf_a: direct_pdf_w,
-                    emission_pdf_w: direct_pdf_w * disk_pdf(scene.1),
+                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir),
                     cos_at_light: 1.0,
                 })
             }
@@ -419,20 +426,6 @@ fn area_emission(
     })
 }
 
-/// Density of a uniform point on the disk of radius `r` (the bounding sphere's cross-section).
-fn disk_pdf(r: f32) -> f32 {
-    1.0 / (PI * r * r)
-}
-
-/// A point on the disk of the scene's bounding sphere perpendicular to `dir`, moved back
-/// outside the sphere so rays travelling along `dir` cross the whole scene.
-fn disk_origin(scene: (Vec3, f32), dir: Vec3, u: [f32; 2]) -> Vec3 {
-    let (center, radius) = scene;
-    let frame = Frame::from_z(dir);
-    let d = sampling::concentric_disk(u);
-    center + radius * (frame.x * d.x + frame.y * d.y - dir)
-}
-
 /// The sky's radiance seen looking along the unit direction `w`.
 pub fn sky_radiance(sky: &SkyDesc, w: Vec3) -> Rgb {
     sky.horizon + (sky.zenith - sky.horizon) * w.dot(sky.up).max(0.0)
@@ -460,7 +453,7 @@ impl Lights {
         explicit: Vec<Light>,
         sky: Option<SkyDesc>,
         env: Option<EnvMapDesc>,
-        scene: (Vec3, f32),
+        scene: SceneBounds,
     ) -> Self {
         let mut lights = Vec::new();
         let mut triangle_lights = vec![NO_LIGHT; geometry.triangles.len()];
@@ -616,7 +609,7 @@ impl Lights {
         Some(Received {
             radiance,
             direct_pdf_a,
-            emission_pdf_w: direct_pdf_a * disk_pdf(scene.1),
+            emission_pdf_w: direct_pdf_a * scene.origin_pdf(dir),
         })
     }
 

@@ -15,7 +15,7 @@ use crate::bsdf::{Material, MaterialKind};
 use crate::color::Rgb;
 use crate::files::{self, Kind};
 use crate::light::Light;
-use crate::light::{EnvMapDesc, SkyDesc};
+use crate::light::{EnvMapDesc, SceneBounds, SkyDesc};
 use crate::options::OptionName;
 use crate::texture::{self, Texture};
 use glam::{Mat3, Vec2, Vec3};
@@ -993,7 +993,7 @@ impl Loader {
             "directional" => Ok(Light::Directional {
                 direction: self.direction(&format!("{entry}.direction"), need(l.direction, "direction")?)?,
                 irradiance: self.color(&format!("{entry}.irradiance"), need(l.irradiance, "irradiance")?)?,
-                scene: (Vec3::ZERO, 1.0),
+                scene: SceneBounds::new(Vec3::ZERO, Vec3::ONE),
             }),
             other => Err(self.invalid(
                 format!("{entry}.type"),

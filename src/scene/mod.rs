@@ -4,7 +4,7 @@
 use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, PACKET};
 use crate::bsdf::{Albedo, Bsdf, Material, MaterialKind, Normals, TransportMode};
 use crate::color::Rgb;
-use crate::light::{EnvMapDesc, Lights, SkyDesc};
+use crate::light::{EnvMapDesc, Lights, SceneBounds, SkyDesc};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
 use std::path::PathBuf;
@@ -175,7 +175,7 @@ impl Scene {
             parts.point_and_directional,
             parts.sky,
             parts.env_map,
-            (center, radius),
+            SceneBounds::new(min, max),
         );
         if let Some(message) = lights.power_overflow() {
             return Err(SceneError::LightPower {

@@ -9,7 +9,7 @@ use crate::accel::{Geometry, Sphere};
 use crate::bsdf::{Material, MaterialKind};
 use crate::color::Rgb;
 use crate::files::{self, FileError, Kind};
-use crate::light::{EnvMapDesc, Light, SkyDesc};
+use crate::light::{EnvMapDesc, Light, SceneBounds, SkyDesc};
 use crate::options::OptionName;
 use crate::scene::{
     CameraDesc, FovAxis, MaterialTextures, MeshShading, RenderDefaults, SceneError, SceneParts,
@@ -1188,7 +1188,7 @@ impl Importer {
                 self.lights.push(Light::Directional {
                     direction: dir.normalize().as_vec3(),
                     irradiance,
-                    scene: (Vec3::ZERO, 1.0),
+                    scene: SceneBounds::new(Vec3::ZERO, Vec3::ONE),
                 });
             }
             "infinite" => {
