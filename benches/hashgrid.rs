@@ -31,6 +31,7 @@ use std::time::{Duration, Instant};
 use vmerge::accel::{AccelKind, Ray};
 use vmerge::bsdf::TransportMode;
 use vmerge::hashgrid::HashGrid;
+use vmerge::light::Aim;
 use vmerge::sampling::{uniform_triangle, Distribution1D, Rng};
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
@@ -311,7 +312,7 @@ fn vertex_sets(scene: &Scene, seed: u64) -> (Vec<Vec3>, Vec<Vec3>) {
             };
             let light = lights.get(index);
             let (u_pos, u_dir) = (rng.next_2d(), rng.next_2d());
-            let Some(e) = light.emit(u_pos, u_dir) else {
+            let Some(e) = light.emit(u_pos, u_dir, Aim::Disc) else {
                 return;
             };
             let origin = if light.is_finite() && !light.is_delta() {

@@ -21,6 +21,7 @@ use vmerge::integrator::mis::{
     VcmWeights, VmHere, NO_DENSITY,
 };
 use vmerge::integrator::upg::Deferred;
+use vmerge::light::Aim;
 use vmerge::options::DensityMis;
 use vmerge::sampling::{Rng, Stream};
 use vmerge::scene::{Camera, Scene};
@@ -68,6 +69,8 @@ struct LightEnd {
 struct Setup<'a> {
     scene: &'a Scene,
     camera: Camera,
+    /// Where infinite lights start their sub-paths (their emission pdf).
+    aim: Aim,
 }
 
 impl Setup<'_> {
@@ -110,7 +113,7 @@ impl Setup<'_> {
         let lights = &self.scene.lights;
         let (index, pick) = lights.pick(rng.next_f32())?;
         let light = lights.get(index);
-        let il = light.illuminate(position, rng.next_2d())?;
+        let il = light.illuminate(position, rng.next_2d(), self.aim)?;
         if self
             .scene
             .occluded(&il.shadow_ray(position, ng, light.is_delta()))
@@ -575,12 +578,13 @@ fn vcm_weights(
     (vc, vm)
 }
 
-fn paths(scene_name: &str, seed: u64, count_per_length: usize) -> (Scene, Vec<FullPath>) {
+fn paths(scene_name: &str, seed: u64, count_per_length: usize, aim: Aim) -> (Scene, Vec<FullPath>) {
     let scene = common::load(scene_name);
     let desc = scene.camera(None).unwrap().clone();
     let setup = Setup {
         scene: &scene,
         camera: Camera::new(&desc, PIXELS, PIXELS),
+        aim,
     };
     let mut rng = Rng::for_sample(seed, 0, 0, Stream::Eye);
     let mut all = Vec::new();
@@ -600,12 +604,13 @@ fn paths(scene_name: &str, seed: u64, count_per_length: usize) -> (Scene, Vec<Fu
 }
 
 /// Checks every path of a scene; returns (paths with a specular vertex, paths with merges).
-fn check_scene(name: &str) -> (usize, usize) {
-    let (scene, paths) = paths(name, 7, 40);
+fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
+    let (scene, paths) = paths(name, 7, 40, aim);
     let desc = scene.camera(None).unwrap().clone();
     let setup = Setup {
         scene: &scene,
         camera: Camera::new(&desc, PIXELS, PIXELS),
+        aim,
     };
     let (mut specular, mut merged, mut clamped, mut shared_merges) = (0, 0, 0, 0);
     let mut reweighted = std::collections::HashMap::<&str, usize>::new();
@@ -736,24 +741,26 @@ fn check_scene(name: &str) -> (usize, usize) {
 
 #[test]
 fn weights_sum_to_one_in_the_furnace() {
-    check_scene("furnace");
+    check_scene("furnace", Aim::Disc);
 }
 
 #[test]
 fn weights_sum_to_one_with_phong() {
-    let (_, merged) = check_scene("cornell-glossy");
+    let (_, merged) = check_scene("cornell-glossy", Aim::Disc);
     assert!(merged > 0, "no path gave a merge any weight");
 }
 
 #[test]
 fn weights_sum_to_one_with_mirror_and_glass() {
-    let (specular, _) = check_scene("cornell-spheres");
+    let (specular, _) = check_scene("cornell-spheres", Aim::Disc);
     assert!(specular > 20, "only {specular} paths had a specular vertex");
 }
 
 #[test]
 fn weights_sum_to_one_with_point_directional_and_sky_lights() {
     for name in ["cornell-point", "cornell-sun", "cornell-sky", "caustic"] {
-        check_scene(name);
+        for aim in [Aim::Disc, Aim::Silhouette] {
+            check_scene(name, aim);
+        }
     }
 }

@@ -21,6 +21,7 @@ use crate::accel::Ray;
 use crate::bsdf::{Bsdf, Normals, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
+use crate::light::Aim;
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::{Vec2, Vec3};
@@ -28,6 +29,9 @@ use rayon::prelude::*;
 
 /// Pixels traced by one parallel task. Fixed, so results do not depend on threads.
 const CHUNK: usize = 256;
+/// Every eye vertex connects to every vertex of its light sub-path: the infinite lights'
+/// sub-paths start on the bounding sphere's disc (`light/bounds.rs`).
+const BPT_AIM: Aim = Aim::Disc;
 
 /// What one parallel task returns: its pixels' eye estimates, its light-tracing splats.
 struct Chunk {
@@ -210,7 +214,7 @@ impl<'a> Bpt<'a> {
         };
         let light = lights.get(light_index);
         let [u_pos, u_dir] = sampler.next_4d();
-        let Some(e) = light.emit(u_pos, u_dir) else {
+        let Some(e) = light.emit(u_pos, u_dir, BPT_AIM) else {
             return;
         };
         if e.emission_pdf_w.is_nan() || e.emission_pdf_w <= 0.0 {
@@ -320,7 +324,8 @@ impl<'a> Bpt<'a> {
         }
         let lights = &self.scene().lights;
         let dir = state.ray.dir.normalize();
-        let Some((received, index)) = lights.received(dir, hit.map(|h| (h.light, h.ng))) else {
+        let Some((received, index)) = lights.received(dir, hit.map(|h| (h.light, h.ng)), BPT_AIM)
+        else {
             return Rgb::BLACK;
         };
         if t == 2 {
@@ -347,7 +352,7 @@ impl<'a> Bpt<'a> {
         sampler: &mut Sampler,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let sample = LightSample::draw(self.scene(), hit, bsdf, sampler);
+        let sample = LightSample::draw(self.scene(), hit, bsdf, sampler, BPT_AIM);
         let Some(ls) = sample.filter(|_| self.filter.allows(1, state.index + 1)) else {
             return Rgb::BLACK;
         };

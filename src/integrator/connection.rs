@@ -4,7 +4,7 @@
 use super::mis::{ConnectionPdfs, LightSamplePdfs};
 use crate::bsdf::{Bsdf, BsdfEval};
 use crate::color::Rgb;
-use crate::light::{Illumination, Light};
+use crate::light::{Aim, Illumination, Light};
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
@@ -22,18 +22,20 @@ pub struct LightSample<'s> {
 
 impl<'s> LightSample<'s> {
     /// Draws the pick and the point (always three numbers, so the streams of every technique
-    /// stay aligned) and returns the sample when it can contribute.
+    /// stay aligned) and returns the sample when it can contribute; `aim` is where the
+    /// technique's light sub-paths of infinite lights start (for `emission_pdf_w`).
     pub fn draw(
         scene: &'s Scene,
         hit: &SurfaceHit,
         bsdf: &Bsdf,
         sampler: &mut Sampler,
+        aim: Aim,
     ) -> Option<Self> {
         let u_pick = sampler.next_f32();
         let u = sampler.next_2d();
         let (index, pick) = scene.lights.pick(u_pick)?;
         let light = scene.lights.get(index);
-        let il = light.illuminate(hit.position, u)?;
+        let il = light.illuminate(hit.position, u, aim)?;
         let eval = bsdf.eval(il.dir_to_light);
         if eval.f.is_black() {
             return None;

@@ -7,9 +7,13 @@ use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
+use crate::light::Aim;
 use crate::sampling::{mis_power, Sampler};
 use crate::scene::SurfaceHit;
 use rayon::prelude::*;
+
+/// The path tracer weighs nothing against light sub-paths, so where they would start is moot.
+const PT_AIM: Aim = Aim::Disc;
 
 pub struct PathTracer<'a> {
     ctx: RenderContext<'a>,
@@ -49,7 +53,7 @@ impl<'a> PathTracer<'a> {
             let Some(hit) = scene.intersect(&ray) else {
                 if let Some(received) = scene
                     .lights
-                    .background(ray.dir)
+                    .background(ray.dir, PT_AIM)
                     .filter(|_| length >= min_length)
                 {
                     let weight = if last_delta {
@@ -122,7 +126,7 @@ impl<'a> PathTracer<'a> {
     /// Next-event estimation: one light sample, weighted against BSDF sampling.
     fn sample_light(&self, hit: &SurfaceHit, bsdf: &Bsdf, sampler: &mut Sampler) -> (Rgb, u64) {
         let scene = self.ctx.scene;
-        let Some(ls) = LightSample::draw(scene, hit, bsdf, sampler) else {
+        let Some(ls) = LightSample::draw(scene, hit, bsdf, sampler, PT_AIM) else {
             return (Rgb::BLACK, 0);
         };
         if !ls.visible(scene, hit) {

@@ -33,6 +33,7 @@ use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::hashgrid::{kept, HashGrid};
+use crate::light::Aim;
 use crate::options::{RenderOptions, Technique};
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
@@ -79,6 +80,17 @@ impl Modes {
             ppm,
             light_trace,
             gather,
+        }
+    }
+
+    /// Where the light sub-paths of infinite lights start: where no eye vertex connects to
+    /// them, every vertex that reaches the scene is worth its cost, and the box's silhouette
+    /// wastes fewer sub-paths than the bounding sphere's disc (`light/bounds.rs`).
+    fn aim(&self) -> Aim {
+        if self.vc {
+            Aim::Disc
+        } else {
+            Aim::Silhouette
         }
     }
 
@@ -228,7 +240,7 @@ impl<'a> VertexCm<'a> {
         let (index, pick) = lights.pick(sampler.next_f32())?;
         let light = lights.get(index);
         let [u_pos, u_dir] = sampler.next_4d();
-        let e = light.emit(u_pos, u_dir)?;
+        let e = light.emit(u_pos, u_dir, self.modes.aim())?;
         let emission_pdf_w = e.emission_pdf_w * pick;
         let direct_pdf_a = e.direct_pdf_a * pick;
         if emission_pdf_w.is_nan() || emission_pdf_w <= 0.0 {
@@ -495,7 +507,9 @@ impl<'a> VertexCm<'a> {
         }
         let lights = &self.scene().lights;
         let dir = state.ray.dir.normalize();
-        let Some((received, index)) = lights.received(dir, hit.map(|h| (h.light, h.ng))) else {
+        let Some((received, index)) =
+            lights.received(dir, hit.map(|h| (h.light, h.ng)), self.modes.aim())
+        else {
             return Rgb::BLACK;
         };
         if state.path_length == 1 {
@@ -532,7 +546,7 @@ impl<'a> VertexCm<'a> {
         if self.too_short(state.path_length + 1) {
             return Rgb::BLACK;
         }
-        let Some(ls) = LightSample::draw(self.scene(), hit, bsdf, sampler) else {
+        let Some(ls) = LightSample::draw(self.scene(), hit, bsdf, sampler, self.modes.aim()) else {
             return Rgb::BLACK;
         };
         // Towards the light lies the light point, which tentative rays cannot leave from.

@@ -24,7 +24,7 @@ use std::sync::Arc;
 mod bounds;
 mod env;
 
-pub use bounds::SceneBounds;
+pub use bounds::{Aim, SceneBounds};
 pub use env::{EnvLight, EnvMapDesc};
 
 /// Background radiance L(w) = horizon + (zenith - horizon) * max(0, w . up).
@@ -215,8 +215,9 @@ impl Light {
         }
     }
 
-    /// A point on the light as seen from `receiver`, for random numbers `u`.
-    pub fn illuminate(&self, receiver: Vec3, u: [f32; 2]) -> Option<Illumination> {
+    /// A point on the light as seen from `receiver`, for random numbers `u`; an infinite
+    /// light's `emission_pdf_w` is that of sub-paths started as `aim` says.
+    pub fn illuminate(&self, receiver: Vec3, u: [f32; 2], aim: Aim) -> Option<Illumination> {
         match *self {
             Light::Triangle { .. } | Light::Sphere { .. } => {
                 let (p, normal, pdf_a, radiance) = self.area_point(u)?;
@@ -251,7 +252,7 @@ impl Light {
                 normal: direction,
                 radiance: irradiance,
                 direct_pdf_w: 1.0,
-                emission_pdf_w: scene.origin_pdf(direction),
+                emission_pdf_w: scene.origin_pdf(direction, aim),
                 cos_at_light: 1.0,
             }),
             Light::Sky { sky, scene } => {
@@ -264,7 +265,7 @@ impl Light {
                     normal: -dir,
                     radiance: sky_radiance(&sky, dir),
                     direct_pdf_w,
-                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir),
+                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir, aim),
                     cos_at_light: 1.0,
                 })
             }
@@ -277,7 +278,7 @@ impl Light {
                     normal: -dir,
                     radiance,
                     direct_pdf_w,
-                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir),
+                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir, aim),
                     cos_at_light: 1.0,
                 })
             }
@@ -285,8 +286,8 @@ impl Light {
     }
 
     /// A position and direction leaving the light: `u_pos` picks the position, `u_dir` the
-    /// direction.
-    pub fn emit(&self, u_pos: [f32; 2], u_dir: [f32; 2]) -> Option<Emission> {
+    /// direction; an infinite light's position lies in the region `aim`.
+    pub fn emit(&self, u_pos: [f32; 2], u_dir: [f32; 2], aim: Aim) -> Option<Emission> {
         match *self {
             Light::Triangle { .. } | Light::Sphere { .. } => {
                 let (p, normal, pdf_a, radiance) = self.area_point(u_pos)?;
@@ -312,12 +313,12 @@ impl Light {
                 irradiance,
                 scene,
             } => Some(Emission {
-                position: scene.origin(direction, u_pos),
+                position: scene.origin(direction, u_pos, aim),
                 dir: direction,
                 normal: direction,
                 energy: irradiance,
                 direct_pdf_a: 1.0,
-                emission_pdf_w: scene.origin_pdf(direction),
+                emission_pdf_w: scene.origin_pdf(direction, aim),
                 cos_at_light: 1.0,
             }),
             Light::Sky { sky, scene } => {
@@ -327,12 +328,12 @@ impl Light {
                 let dir = -to_sky;
                 let direct_pdf_w = sampling::UNIFORM_SPHERE_PDF;
                 Some(Emission {
-                    position: scene.origin(dir, u_pos),
+                    position: scene.origin(dir, u_pos, aim),
                     dir,
                     normal: dir,
                     energy: sky_radiance(&sky, to_sky),
                     direct_pdf_a: direct_pdf_w,
-                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir),
+                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir, aim),
                     cos_at_light: 1.0,
                 })
             }
@@ -341,12 +342,12 @@ impl Light {
                 let (to_sky, radiance, direct_pdf_w) = env.sample(u_dir)?;
                 let dir = -to_sky;
                 Some(Emission {
-                    position: scene.origin(dir, u_pos),
+                    position: scene.origin(dir, u_pos, aim),
                     dir,
                     normal: dir,
                     energy: radiance,
                     direct_pdf_a: direct_pdf_w,
-                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir),
+                    emission_pdf_w: direct_pdf_w * scene.origin_pdf(dir, aim),
                     cos_at_light: 1.0,
                 })
             }
@@ -586,19 +587,25 @@ impl Lights {
 
     /// What a ray travelling along the unit `dir` receives where it ends: from the emitter
     /// `hit` (its light index and geometric normal) or, leaving the scene (`None`), from the
-    /// sky; with the index of the light it came from.
-    pub fn received(&self, dir: Vec3, hit: Option<(Option<u32>, Vec3)>) -> Option<(Received, u32)> {
+    /// sky (its `emission_pdf_w` that of sub-paths started as `aim` says); with the index of
+    /// the light it came from.
+    pub fn received(
+        &self,
+        dir: Vec3,
+        hit: Option<(Option<u32>, Vec3)>,
+        aim: Aim,
+    ) -> Option<(Received, u32)> {
         match hit {
             Some((light, normal)) => {
                 let index = light?;
                 Some((self.get(index).radiance(dir, normal)?, index))
             }
-            None => Some((self.background(dir)?, self.sky?)),
+            None => Some((self.background(dir, aim)?, self.sky?)),
         }
     }
 
     /// What a ray leaving the scene along the unit `dir` receives from the sky.
-    pub fn background(&self, dir: Vec3) -> Option<Received> {
+    pub fn background(&self, dir: Vec3, aim: Aim) -> Option<Received> {
         let (radiance, direct_pdf_a, scene) = match self.get(self.sky?) {
             Light::Sky { sky, scene } => {
                 (sky_radiance(sky, dir), sampling::UNIFORM_SPHERE_PDF, scene)
@@ -609,7 +616,7 @@ impl Lights {
         Some(Received {
             radiance,
             direct_pdf_a,
-            emission_pdf_w: direct_pdf_a * scene.origin_pdf(dir),
+            emission_pdf_w: direct_pdf_a * scene.origin_pdf(dir, aim),
         })
     }
 
