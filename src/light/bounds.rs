@@ -129,7 +129,7 @@ mod tests {
     /// The silhouette's area by Monte Carlo: the fraction of a square around the bounding
     /// sphere's disc whose rays along `dir` hit the box.
     fn hit_fraction_area(b: &SceneBounds, dir: Vec3, rng: &mut Rng, n: usize) -> f64 {
-        let frame = crate::frame::Frame::from_z(dir);
+        let frame = Frame::from_z(dir);
         let side = 2.0 * b.radius;
         let mut hits = 0usize;
         for _ in 0..n {
@@ -174,7 +174,7 @@ mod tests {
     fn origins_are_uniform_over_their_region_with_the_stated_density() {
         let b = SceneBounds::new(Vec3::new(-1.0, -2.0, 0.0), Vec3::new(1.0, 2.0, 0.5));
         let dir = Vec3::new(0.3, -0.5, 0.8).normalize();
-        let frame = crate::frame::Frame::from_z(dir);
+        let frame = Frame::from_z(dir);
         let (cells, probes, n) = (8usize, 64usize, 200_000usize);
         let side = 2.0 * b.radius / cells as f32;
         for aim in [Aim::Disc, Aim::Silhouette] {
