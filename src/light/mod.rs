@@ -322,8 +322,8 @@ impl Light {
                 cos_at_light: 1.0,
             }),
             Light::Sky { sky, scene } => {
-                // 001 sec. 5.1: a direction towards the sky, then a point on the scene's
-                // silhouette facing it; the pdf of the point is per area of the plane.
+                // 001 sec. 5.1: a direction towards the sky, then a point of the region `aim`
+                // facing it; the pdf of the point is per area of the plane.
                 let to_sky = sampling::uniform_sphere(u_dir);
                 let dir = -to_sky;
                 let direct_pdf_w = sampling::UNIFORM_SPHERE_PDF;
