@@ -13,8 +13,10 @@
 //! Each query counts its neighbours and sums their indices; all structures must agree on the
 //! totals. Timings are single-threaded; the grid's parallel build, its design, is measured as
 //! well. Grid and SmallVCM layout rebuild into their buffers of the previous sample, as they do
-//! across a render's iterations; the kd-tree is built anew. The ratios (other / grid) are
-//! printed at the end.
+//! across a render's iterations; the kd-tree is built anew. The grid's and SmallVCM's layout's
+//! builds, and the three structures' queries of each batch, run in turn within every sample, so
+//! a slow spell of a shared machine falls on all of them alike; the ratios (other / grid,
+//! medians of the samples' ratios where timed in turn) are printed at the end.
 //!
 //! Run: `cargo bench --bench hashgrid`.
 
@@ -23,7 +25,7 @@ use glam::Vec3;
 use kiddo::immutable::float::kdtree::ImmutableKdTree;
 use kiddo::SquaredEuclidean;
 use rayon::prelude::*;
-use std::cell::RefCell;
+use std::cell::{Cell, RefCell};
 use std::collections::BTreeMap;
 use std::hint::black_box;
 use std::path::{Path, PathBuf};
@@ -403,6 +405,38 @@ impl Record {
         elapsed
     }
 
+    /// Times `iters` rounds of `runs`, each round running them in turn, and keeps each one's
+    /// time per run under its key: all see the same spells of a shared machine, so their
+    /// ratios are taken sample by sample ([`Record::median_ratio`]).
+    fn time_interleaved(&self, runs: &mut [(&str, &mut dyn FnMut())], iters: u64) -> Duration {
+        let mut elapsed = vec![Duration::ZERO; runs.len()];
+        for _ in 0..iters {
+            for ((_, run), elapsed) in runs.iter_mut().zip(&mut elapsed) {
+                let start = Instant::now();
+                run();
+                *elapsed += start.elapsed();
+            }
+        }
+        let mut record = self.0.borrow_mut();
+        for ((key, _), elapsed) in runs.iter().zip(&elapsed) {
+            record
+                .entry(key.to_string())
+                .or_default()
+                .push(elapsed.as_secs_f64() / iters as f64);
+        }
+        elapsed.iter().sum()
+    }
+
+    /// The median over samples of `numerator`'s time over `denominator`'s, for two keys timed
+    /// together by [`Record::time_interleaved`].
+    fn median_ratio(&self, numerator: &str, denominator: &str) -> Option<f64> {
+        let record = self.0.borrow();
+        let (n, d) = (record.get(numerator)?, record.get(denominator)?);
+        let mut ratios: Vec<f64> = n.iter().zip(d).map(|(n, d)| n / d).collect();
+        ratios.sort_by(f64::total_cmp);
+        ratios.get(ratios.len() / 2).copied()
+    }
+
     fn median(&self, key: &str) -> Option<f64> {
         let mut times = self.0.borrow().get(key)?.clone();
         times.sort_by(f64::total_cmp);
@@ -450,26 +484,26 @@ fn measure(
             })
         });
     }
-    let mut grid = HashGrid::default();
-    group.bench_function("build/grid", |b| {
+    let (mut grid, mut flat) = (HashGrid::default(), FlatGrid::default());
+    group.bench_function("build/grid-and-smallvcm-layout", |b| {
         b.iter_custom(|iters| {
-            record.time(&format!("{key}/build/grid"), iters, || {
-                single.install(|| grid.rebuild(w.points, w.radius))
-            })
+            record.time_interleaved(
+                &mut [
+                    (&format!("{key}/build/grid"), &mut || {
+                        single.install(|| grid.rebuild(w.points, w.radius))
+                    }),
+                    (&format!("{key}/build/flat"), &mut || {
+                        flat.rebuild(w.points, w.radius)
+                    }),
+                ],
+                iters,
+            )
         })
     });
     group.bench_function(format!("build/grid-{threads}-threads"), |b| {
         b.iter_custom(|iters| {
             record.time(&format!("{key}/build/grid-par"), iters, || {
                 grid.rebuild(w.points, w.radius)
-            })
-        })
-    });
-    let mut flat = FlatGrid::default();
-    group.bench_function("build/smallvcm-layout", |b| {
-        b.iter_custom(|iters| {
-            record.time(&format!("{key}/build/flat"), iters, || {
-                flat.rebuild(w.points, w.radius)
             })
         })
     });
@@ -490,28 +524,28 @@ fn measure(
     let batches = w.queries.len() / w.batch;
     let batch = |next: usize| next * w.batch..(next + 1) * w.batch;
     let mut next = 0;
-    group.bench_function("query/kd-tree", |b| {
+    group.bench_function("query/kd-tree-grid-and-smallvcm-layout", |b| {
         b.iter_custom(|iters| {
-            record.time(&format!("{key}/query/kd-tree"), iters, || {
-                next = (next + 1) % batches;
-                query_tree(tree, &query_arrays[batch(next)], w.radius)
-            })
-        })
-    });
-    group.bench_function("query/grid", |b| {
-        b.iter_custom(|iters| {
-            record.time(&format!("{key}/query/grid"), iters, || {
-                next = (next + 1) % batches;
-                query_grid(&grid, &w.queries[batch(next)])
-            })
-        })
-    });
-    group.bench_function("query/smallvcm-layout", |b| {
-        b.iter_custom(|iters| {
-            record.time(&format!("{key}/query/flat"), iters, || {
-                next = (next + 1) % batches;
-                query_flat(&flat, &w.queries[batch(next)])
-            })
+            // All three answer the same batch, the next one each round.
+            let current = Cell::new(next);
+            let queries = || batch(current.get());
+            let elapsed = record.time_interleaved(
+                &mut [
+                    (&format!("{key}/query/kd-tree"), &mut || {
+                        current.set((current.get() + 1) % batches);
+                        black_box(query_tree(tree, &query_arrays[queries()], w.radius));
+                    }),
+                    (&format!("{key}/query/grid"), &mut || {
+                        black_box(query_grid(&grid, &w.queries[queries()]));
+                    }),
+                    (&format!("{key}/query/flat"), &mut || {
+                        black_box(query_flat(&flat, &w.queries[queries()]));
+                    }),
+                ],
+                iters,
+            );
+            next = current.get();
+            elapsed
         })
     });
     group.finish();
@@ -561,6 +595,18 @@ fn print_table(record: &Record, rows: &[(String, String, String, usize)]) {
         else {
             continue;
         };
+        // What was timed interleaved with the grid is compared by the median of the samples'
+        // ratios: SmallVCM's layout's builds, and every query.
+        let ratio = |other: &str, grid: &str| {
+            record.median_ratio(&format!("{key}/{other}"), &format!("{key}/{grid}"))
+        };
+        let (Some(build_flat_ratio), Some(query_kd_ratio), Some(query_flat_ratio)) = (
+            ratio("build/flat", "build/grid"),
+            ratio("query/kd-tree", "query/grid"),
+            ratio("query/flat", "query/grid"),
+        ) else {
+            continue;
+        };
         let per_query = 1e6 / *batch as f64;
         println!(
             "{:>22} {:>9.1} | {:>9.1} {:>9.1} {:>9.1} {:>9.1} {:>6.2} {:>6.2} | {:>9.3} {:>9.3} {:>9.3} {:>6.2} {:>6.2}",
@@ -571,12 +617,12 @@ fn print_table(record: &Record, rows: &[(String, String, String, usize)]) {
             build_par * 1e3,
             build_flat * 1e3,
             build_kd / build_grid,
-            build_flat / build_grid,
+            build_flat_ratio,
             query_kd * per_query,
             query_grid * per_query,
             query_flat * per_query,
-            query_kd / query_grid,
-            query_flat / query_grid
+            query_kd_ratio,
+            query_flat_ratio
         );
     }
 }
@@ -664,7 +710,11 @@ fn benches(c: &mut Criterion) {
         }
     }
 
-    println!("\nTimes are medians over samples; flat = SmallVCM's layout; ratios other / grid.");
+    println!(
+        "\nTimes are medians over samples; flat = SmallVCM's layout; ratios other / grid. \
+         SmallVCM's layout's build and all queries are timed interleaved with the grid's, \
+         their ratios the medians of the samples' ratios."
+    );
     println!("000 Table 2.1 (Cornell box surfaces, size {diagonal:.3}):");
     print_table(&record, &rows);
     println!(

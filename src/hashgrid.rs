@@ -81,12 +81,14 @@ pub struct HashGrid {
     /// a power of two long.
     table: Vec<Slot>,
     shift: u32,
-    /// The sort's and the table build's buffers, kept so a rebuild allocates nothing: (key,
-    /// index) pairs packed into one integer, u64 while keys fit 32 bits, u128 beyond.
-    narrow: [Vec<u64>; 2],
-    wide: [Vec<u128>; 2],
+    /// The sort's and the table build's buffers, kept so a rebuild allocates nothing: points
+    /// with their (key, index) pairs packed into one integer, u64 while keys fit 32 bits, u128
+    /// beyond.
+    narrow: [Vec<Record<u64>>; 2],
+    wide: [Vec<Record<u128>>; 2],
     /// Distinct cells in order, each with the end of its range.
     cells: Vec<(u64, u32)>,
+    /// The sort's digit counts, then the number of cells ending in each chunk of points.
     histograms: Vec<u32>,
 }
 
@@ -327,59 +329,89 @@ impl HashGrid {
 
     /// Sorts the points by cell key, stably (so by cell, then index), copies them into cell
     /// order and finds the distinct cells.
-    fn arrange<T: Item>(&mut self, points: &[Vec3], [items, scratch]: &mut [Vec<T>; 2], bits: u32) {
+    fn arrange<T: Item>(
+        &mut self,
+        points: &[Vec3],
+        [records, scratch]: &mut [Vec<Record<T>>; 2],
+        bits: u32,
+    ) {
         let n = points.len();
-        items.resize(n, T::default());
+        records.resize(n, Record::default());
         let grid = &*self;
-        items
+        records
             .par_chunks_mut(CHUNK)
             .zip(points.par_chunks(CHUNK))
             .enumerate()
-            .for_each(|(chunk, (items, points))| {
-                for (i, (item, &p)) in items.iter_mut().zip(points).enumerate() {
-                    *item = T::new(grid.key_of(p), (chunk * CHUNK + i) as u32);
+            .for_each(|(chunk, (records, points))| {
+                for (i, (record, &p)) in records.iter_mut().zip(points).enumerate() {
+                    *record = Record {
+                        item: T::new(grid.key_of(p), (chunk * CHUNK + i) as u32),
+                        position: p.to_array(),
+                    };
                 }
             });
-        radix_sort(items, scratch, &mut self.histograms, bits);
+        radix_sort(records, scratch, &mut self.histograms, bits);
 
-        // One pass gathers every point once (each in its own cache line, in random order).
+        // One pass splits the sorted points into the query's arrays and counts the cells that
+        // end in each chunk.
+        let records = &*records;
+        let key = |i: usize| records[i].item.key();
+        let is_end = |i: usize| i + 1 == n || key(i) != key(i + 1);
+        let chunks = n.div_ceil(CHUNK);
         self.xs.resize(n, 0.0);
         self.ys.resize(n, 0.0);
         self.zs.resize(n, 0.0);
         self.indices.resize(n, 0);
-        items
+        let ends_per_chunk = &mut self.histograms;
+        ends_per_chunk.clear();
+        ends_per_chunk.resize(chunks, 0);
+        records
             .par_chunks(CHUNK)
             .zip(self.xs.par_chunks_mut(CHUNK))
             .zip(self.ys.par_chunks_mut(CHUNK))
             .zip(self.zs.par_chunks_mut(CHUNK))
             .zip(self.indices.par_chunks_mut(CHUNK))
-            .for_each(|((((items, xs), ys), zs), indices)| {
-                for (i, item) in items.iter().enumerate() {
-                    let index = item.index();
-                    let p = points[index as usize];
-                    (xs[i], ys[i], zs[i], indices[i]) = (p.x, p.y, p.z, index);
+            .zip(ends_per_chunk.par_iter_mut())
+            .enumerate()
+            .for_each(|(chunk, (((((part, xs), ys), zs), indices), ends))| {
+                let start = chunk * CHUNK;
+                for (i, record) in part.iter().enumerate() {
+                    let [x, y, z] = record.position;
+                    (xs[i], ys[i], zs[i], indices[i]) = (x, y, z, record.item.index());
+                    *ends += u32::from(is_end(start + i));
                 }
             });
-
+        // The distinct cells in order, each with the end of its range; every chunk writes
+        // those that end in it to its own slice.
+        let total: usize = ends_per_chunk.iter().map(|&ends| ends as usize).sum();
         self.cells.clear();
-        self.cells.par_extend(
-            items
-                .par_windows(2)
-                .enumerate()
-                .filter(|(_, pair)| pair[0].key() != pair[1].key())
-                .map(|(i, pair)| (pair[0].key(), i as u32 + 1)),
-        );
-        if let Some(last) = items.last() {
-            self.cells.push((last.key(), n as u32));
+        self.cells.resize(total, (0, 0));
+        let mut rest = self.cells.as_mut_slice();
+        let mut targets = Vec::with_capacity(chunks);
+        for &ends in ends_per_chunk.iter() {
+            let (target, tail) = std::mem::take(&mut rest).split_at_mut(ends as usize);
+            targets.push(target);
+            rest = tail;
         }
+        targets
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(chunk, target)| {
+                let start = chunk * CHUNK;
+                let ends = (start..(start + CHUNK).min(n)).filter(|&i| is_end(i));
+                for (cell, i) in target.iter_mut().zip(ends) {
+                    *cell = (key(i), i as u32 + 1);
+                }
+            });
     }
 
     /// The key of the cell of a point: [`cell`]'s offsets from `low`, clamped to `span`, on
     /// all three axes at once in SIMD lanes (in integers, clamps and the floor's correction
     /// cost a point as much as its two sort passes). Exact: the floor of a coordinate clamped
     /// to +-2^30 is a whole f32, so are `low` and `span`, and a difference rounded beyond 2^24
-    /// is clamped to `span` (at most 2^21) either way. A NaN coordinate lands in a valid cell,
-    /// and no distance test accepts it.
+    /// is clamped to `span` (at most 2^21) either way, so the offsets convert through i32 (f32
+    /// to u64 has no SSE2 instruction: that cast doubled the pass). A NaN coordinate lands in a
+    /// valid cell, and no distance test accepts it.
     #[inline]
     fn key_of(&self, p: Vec3) -> u64 {
         let limit = Vec3A::splat(CELL_LIMIT);
@@ -387,7 +419,7 @@ impl HashGrid {
             .clamp(-limit, limit)
             .floor();
         let offset = (floor - self.low_f).clamp(Vec3A::ZERO, self.span_f);
-        let padded = |v: f32| v as u64 + 2;
+        let padded = |v: f32| (v as i32 + 2) as u64;
         padded(offset.x) + padded(offset.y) * self.stride_y + padded(offset.z) * self.stride_z
     }
 
@@ -510,8 +542,17 @@ pub fn kept(batch: &[u32], mut keep: impl FnMut(u32) -> bool) -> impl Iterator<I
     })
 }
 
-/// A cell key and a point index packed into one integer (key above, index in the low 32 bits),
-/// so the sort moves one value per point.
+/// A point as the sort moves it: its key and index, and its coordinates, so the sorted points
+/// are read in order afterwards. Fetching each point through its index instead, in random order,
+/// missed the cache once per point: the build's costliest pass, and the one a shared cache
+/// slowed most.
+#[derive(Clone, Copy, Default)]
+struct Record<T> {
+    item: T,
+    position: [f32; 3],
+}
+
+/// A cell key and a point index packed into one integer (key above, index in the low 32 bits).
 trait Item: Copy + Default + Send + Sync {
     fn new(key: u64, index: u32) -> Self;
     fn key(self) -> u64;
@@ -550,8 +591,8 @@ impl Item for u128 {
 /// bucket. So the order is that of a one-thread stable sort, whatever the number of parts, and
 /// every part writes only to its own slices of `scratch`.
 fn radix_sort<T: Item>(
-    items: &mut Vec<T>,
-    scratch: &mut Vec<T>,
+    items: &mut Vec<Record<T>>,
+    scratch: &mut Vec<Record<T>>,
     histograms: &mut Vec<u32>,
     bits: u32,
 ) {
@@ -559,8 +600,8 @@ fn radix_sort<T: Item>(
     let passes = bits.max(1).div_ceil(DIGIT_BITS) as usize;
     let digit_bits = bits.max(1).div_ceil(passes as u32);
     let buckets = 1usize << digit_bits;
-    let digit = move |item: T, pass: usize| {
-        ((item.key() >> (pass as u32 * digit_bits)) & (buckets as u64 - 1)) as usize
+    let digit = move |record: Record<T>, pass: usize| {
+        ((record.item.key() >> (pass as u32 * digit_bits)) & (buckets as u64 - 1)) as usize
     };
     let part_len = n
         .div_ceil(rayon::current_num_threads())
@@ -585,7 +626,7 @@ fn radix_sort<T: Item>(
     let count = |histograms: &[u32], part: usize, pass: usize, bucket: usize| {
         histograms[part * pass_len + pass * buckets + bucket] as usize
     };
-    scratch.resize(n, T::default());
+    scratch.resize(n, Record::default());
     let mut moved = false;
     for pass in 0..passes {
         let total = |bucket| -> usize {
@@ -610,7 +651,7 @@ fn radix_sort<T: Item>(
         }
         // Each part's slices of `scratch` in output order: bucket by bucket, part by part
         // within a bucket.
-        let mut targets: Vec<Vec<std::slice::IterMut<T>>> =
+        let mut targets: Vec<Vec<std::slice::IterMut<Record<T>>>> =
             (0..parts).map(|_| Vec::with_capacity(buckets)).collect();
         let mut rest = scratch.as_mut_slice();
         for bucket in 0..buckets {

@@ -79,14 +79,15 @@ pub fn estimate(
     // The merging techniques keep one light sub-path per pixel, its vertices stored twice (the
     // light pass's chunks and their concatenation, both kept from one iteration to the next),
     // once more as the merges' compact copy, their positions, and the hash grid: its sorted
-    // copy and sort buffers (32 bytes per point) and its table (16-byte slots, at most three
-    // per point).
+    // copy (16 bytes per point), its two sort buffers (24 bytes per point each: key, index
+    // and position; 32 where cell keys take more than 32 bits) and its table (16-byte slots, at most three per point).
     let light_vertices = if technique.merges() {
         let per_path = (max_path_length as u64).min(roulette as u64 + VERTICES_AFTER_ROULETTE);
         let per_vertex = 2 * std::mem::size_of::<LightVertex>() as u64
             + std::mem::size_of::<MergeVertex>() as u64
             + 12
-            + 32
+            + 16
+            + 2 * 24
             + 48;
         pixels.saturating_mul(per_path).saturating_mul(per_vertex)
     } else {
