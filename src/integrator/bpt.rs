@@ -18,13 +18,13 @@ use super::connection::{Connection, LightSample};
 use super::mis::{self, BptStep, BptVertex, Power};
 use super::{Integrator, IterationStats, RenderContext};
 use crate::accel::Ray;
-use crate::bsdf::{Bsdf, Normals, TransportMode};
+use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::light::Aim;
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
-use glam::{Vec2, Vec3};
+use glam::Vec3;
 use rayon::prelude::*;
 
 /// Pixels traced by one parallel task. Fixed, so results do not depend on threads.
@@ -41,17 +41,14 @@ struct Chunk {
 }
 
 /// A connectable (non-delta) light sub-path vertex.
-#[derive(Clone, Copy, Debug)]
-struct LightVertex {
+#[derive(Clone, Debug)]
+struct LightVertex<'a> {
     position: Vec3,
     ng: Vec3,
-    /// Shading normal and texture coordinates, for the BSDF there.
-    ns: Vec3,
-    uv: Vec2,
-    /// Unit direction back towards the previous vertex.
-    wo: Vec3,
+    /// The BSDF there, as the sub-path scattered: built once, where every eye vertex of the
+    /// pixel connects to it.
+    bsdf: Bsdf<'a>,
     throughput: Rgb,
-    material: u32,
     /// Index i of y_i: the light point is y_0, so s = i + 1 light vertices end here.
     index: u32,
     mis: BptVertex,
@@ -160,7 +157,7 @@ impl<'a> Bpt<'a> {
         }
     }
 
-    fn scene(&self) -> &Scene {
+    fn scene(&self) -> &'a Scene {
         self.ctx.scene
     }
 
@@ -203,7 +200,7 @@ impl<'a> Bpt<'a> {
     fn trace_light_path(
         &self,
         sampler: &mut Sampler,
-        vertices: &mut Vec<LightVertex>,
+        vertices: &mut Vec<LightVertex<'a>>,
         splats: &mut Vec<(usize, Rgb)>,
         stats: &mut IterationStats,
     ) {
@@ -254,18 +251,15 @@ impl<'a> Bpt<'a> {
                 let vertex = LightVertex {
                     position: hit.position,
                     ng: hit.ng,
-                    ns: hit.ns,
-                    uv: hit.uv,
-                    wo,
+                    bsdf: bsdf.clone(),
                     throughput: state.throughput,
-                    material: hit.material,
                     index: state.index,
                     mis: state.mis,
                 };
-                vertices.push(vertex);
                 if self.filter.allows(state.index + 1, 1) {
-                    self.connect_to_camera(&vertex, &bsdf, splats, stats);
+                    self.connect_to_camera(&vertex, splats, stats);
                 }
+                vertices.push(vertex);
             }
             if state.index.saturating_add(2) > max_length {
                 break;
@@ -280,11 +274,10 @@ impl<'a> Bpt<'a> {
     fn connect_to_camera(
         &self,
         lv: &LightVertex,
-        bsdf: &Bsdf,
         splats: &mut Vec<(usize, Rgb)>,
         stats: &mut IterationStats,
     ) {
-        let camera = &self.ctx.camera;
+        let (camera, bsdf) = (&self.ctx.camera, &lv.bsdf);
         let Some((x, y)) = camera.raster(lv.position) else {
             return;
         };
@@ -375,20 +368,7 @@ impl<'a> Bpt<'a> {
         lv: &LightVertex,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let normals = Normals {
-            ng: lv.ng,
-            ns: lv.ns,
-        };
-        let Some(light_bsdf) = self.scene().bsdf(
-            lv.material,
-            normals,
-            lv.uv,
-            lv.wo,
-            TransportMode::Importance,
-        ) else {
-            return Rgb::BLACK;
-        };
-        let Some(c) = Connection::new(bsdf, hit.position, &light_bsdf, lv.position) else {
+        let Some(c) = Connection::new(bsdf, hit.position, &lv.bsdf, lv.position) else {
             return Rgb::BLACK;
         };
         let weight = self
