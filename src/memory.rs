@@ -80,7 +80,8 @@ pub fn estimate(
     // light pass's chunks and their concatenation, both kept from one iteration to the next),
     // once more as the merges' compact copy, their positions, and the hash grid: its sorted
     // copy (16 bytes per point), its two sort buffers (24 bytes per point each: key, index
-    // and position; 32 where cell keys take more than 32 bits) and its table (16-byte slots, at most three per point).
+    // and position; 32 where cell keys take more than 32 bits) and its table (16-byte slots,
+    // at most three per point).
     let light_vertices = if technique.merges() {
         let per_path = (max_path_length as u64).min(roulette as u64 + VERTICES_AFTER_ROULETTE);
         let per_vertex = 2 * std::mem::size_of::<LightVertex>() as u64
