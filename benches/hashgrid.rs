@@ -392,17 +392,7 @@ struct Record(RefCell<BTreeMap<String, Vec<f64>>>);
 impl Record {
     /// Times `iters` runs of `f` for criterion and keeps the time per run.
     fn time<R>(&self, key: &str, iters: u64, mut f: impl FnMut() -> R) -> Duration {
-        let start = Instant::now();
-        for _ in 0..iters {
-            black_box(f());
-        }
-        let elapsed = start.elapsed();
-        self.0
-            .borrow_mut()
-            .entry(key.to_string())
-            .or_default()
-            .push(elapsed.as_secs_f64() / iters as f64);
-        elapsed
+        self.time_interleaved(&mut [(key, &mut || drop(black_box(f())))], iters)
     }
 
     /// Times `iters` rounds of `runs`, each round running them in turn, and keeps each one's
