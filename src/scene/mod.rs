@@ -84,7 +84,7 @@ pub struct SurfaceHit {
     pub ng: Vec3,
     /// Unit shading normal, on the side of `ng`; equal to `ng` where the mesh has none.
     pub ns: Vec3,
-    /// Texture coordinates (zero where the mesh has none).
+    /// Texture coordinates (zero where the mesh has none or the material has no texture).
     pub uv: Vec2,
     pub material: u32,
     /// Index into `Scene::lights` when the primitive emits.
@@ -239,17 +239,32 @@ impl Scene {
     /// texture coordinates.
     pub fn surface_hit(&self, ray: &Ray, hit: Hit) -> SurfaceHit {
         let ng = hit.ng.normalize();
+        // Only textures read uv: an untextured hit skips the lookups (on a large mesh, two
+        // cache misses per hit).
+        let textured =
+            |material: u32| self.material_textures[material as usize] != Default::default();
         let (material, light, ns, uv) = match hit.primitive {
-            Primitive::Triangle(i) => (
-                self.triangle_materials[i as usize],
-                self.lights.triangle_light(i),
-                self.triangle_shading_normal(i, &hit, ng),
-                self.triangle_uv(i, &hit),
-            ),
+            Primitive::Triangle(i) => {
+                let material = self.triangle_materials[i as usize];
+                let uv = if textured(material) {
+                    self.triangle_uv(i, &hit)
+                } else {
+                    Vec2::ZERO
+                };
+                (
+                    material,
+                    self.lights.triangle_light(i),
+                    self.triangle_shading_normal(i, &hit, ng),
+                    uv,
+                )
+            }
             Primitive::Sphere(i) => {
                 let material = self.sphere_materials[i as usize];
-                let textured = self.material_textures[material as usize] != Default::default();
-                let uv = if textured { sphere_uv(ng) } else { Vec2::ZERO };
+                let uv = if textured(material) {
+                    sphere_uv(ng)
+                } else {
+                    Vec2::ZERO
+                };
                 (material, self.lights.sphere_light(i), ng, uv)
             }
         };
