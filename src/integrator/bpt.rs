@@ -12,7 +12,8 @@
 //! Paths of one segment (the camera sees a light) are only found by s = 0 and take weight 1.
 //!
 //! Light-tracing splats of a fixed chunk of pixels are collected and added in chunk order, so
-//! the image does not depend on the thread count.
+//! the image does not depend on the thread count. Each chunk's buffers (its splats, its light
+//! sub-path) are kept from one iteration to the next: the steady state allocates nothing.
 
 use super::connection::{Connection, LightSample};
 use super::mis::{self, BptStep, BptVertex, Power};
@@ -33,11 +34,13 @@ const CHUNK: usize = 256;
 /// sub-paths start on the bounding sphere's disc (`light/bounds.rs`).
 const BPT_AIM: Aim = Aim::Disc;
 
-/// What one parallel task returns: its pixels' eye estimates, its light-tracing splats.
-struct Chunk {
-    colors: Vec<Rgb>,
+/// What one parallel task keeps: its light-tracing splats, its counters, and the light
+/// sub-path of the pixel it is tracing.
+#[derive(Default)]
+struct Chunk<'a> {
     splats: Vec<(usize, Rgb)>,
     stats: IterationStats,
+    light_path: Vec<LightVertex<'a>>,
 }
 
 /// A connectable (non-delta) light sub-path vertex.
@@ -140,6 +143,7 @@ pub struct Bpt<'a> {
     power: Power,
     filter: Filter,
     light_paths: f32,
+    chunks: Vec<Chunk<'a>>,
 }
 
 impl<'a> Bpt<'a> {
@@ -153,6 +157,7 @@ impl<'a> Bpt<'a> {
                 min_length: o.min_path_length,
             },
             light_paths: ctx.camera.pixel_count() as f32,
+            chunks: Vec::new(),
             ctx,
         }
     }
@@ -457,56 +462,48 @@ impl Integrator for Bpt<'_> {
         let (seed, kind) = (self.ctx.options.seed, self.ctx.options.sampler);
         let pixels = frame.len();
         let trace_light = self.filter.needs_light_path();
-        let chunks: Vec<Chunk> = (0..pixels)
-            .into_par_iter()
-            .step_by(CHUNK)
+        let mut chunks = std::mem::take(&mut self.chunks);
+        chunks.resize_with(pixels.div_ceil(CHUNK), Chunk::default);
+        let this = &*self;
+        frame
+            .par_chunks_mut(CHUNK)
+            .zip(chunks.par_iter_mut())
+            .enumerate()
             // A task per chunk: no thread waits long at the iteration's end for another's last.
             .with_max_len(1)
-            .map(|start| {
-                let mut stats = IterationStats::default();
-                let mut splats = Vec::new();
-                let mut light_path = Vec::new();
-                let colors = (start..(start + CHUNK).min(pixels))
-                    .map(|pixel| {
-                        if trace_light {
-                            let mut sampler =
-                                Sampler::light(kind, seed, iteration, pixel as u64, pixels as u64);
-                            self.trace_light_path(
-                                &mut sampler,
-                                &mut light_path,
-                                &mut splats,
-                                &mut stats,
-                            );
-                        }
-                        let mut sampler = Sampler::eye(kind, seed, iteration, pixel as u64);
-                        self.trace_eye_path(&mut sampler, pixel, &light_path, &mut stats)
-                    })
-                    .collect();
-                Chunk {
-                    colors,
-                    splats,
-                    stats,
+            .for_each(|(c, (colors, chunk))| {
+                chunk.splats.clear();
+                chunk.stats = IterationStats::default();
+                for (offset, color) in colors.iter_mut().enumerate() {
+                    let pixel = c * CHUNK + offset;
+                    if trace_light {
+                        let mut sampler =
+                            Sampler::light(kind, seed, iteration, pixel as u64, pixels as u64);
+                        this.trace_light_path(
+                            &mut sampler,
+                            &mut chunk.light_path,
+                            &mut chunk.splats,
+                            &mut chunk.stats,
+                        );
+                    }
+                    let mut sampler = Sampler::eye(kind, seed, iteration, pixel as u64);
+                    let estimate = this.trace_eye_path(
+                        &mut sampler,
+                        pixel,
+                        &chunk.light_path,
+                        &mut chunk.stats,
+                    );
+                    add_sample(color, estimate, &mut chunk.stats.dropped_samples);
                 }
-            })
-            .collect();
+            });
         let mut stats = IterationStats::default();
-        let mut start = 0;
         for chunk in &chunks {
-            for (offset, color) in chunk.colors.iter().enumerate() {
-                add_sample(
-                    &mut frame[start + offset],
-                    *color,
-                    &mut stats.dropped_samples,
-                );
-            }
-            start += chunk.colors.len();
-            stats.rays += chunk.stats.rays;
-        }
-        for chunk in &chunks {
+            stats = stats + chunk.stats;
             for &(pixel, value) in &chunk.splats {
                 add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
             }
         }
+        self.chunks = chunks;
         stats
     }
 }
