@@ -81,7 +81,7 @@ pub struct HashGrid {
     /// a power of two long.
     table: Vec<Slot>,
     shift: u32,
-    /// The sort's and the table build's buffers, kept so a rebuild allocates nothing: points
+    /// The sort's and the table build's buffers, kept from one rebuild to the next: points
     /// with their (key, index) pairs packed into one integer, u64 while keys fit 32 bits, u128
     /// beyond.
     narrow: [Vec<Record<u64>>; 2],
@@ -106,7 +106,9 @@ impl HashGrid {
     }
 
     /// Rebuilds the grid over `points` for the given radius (> 0), reusing its buffers: once
-    /// they have grown to the largest point set, a rebuild allocates nothing.
+    /// they have grown to the largest point set, a rebuild allocates only the lists of output
+    /// slices its parallel passes write to (one entry per chunk of points, or per thread and
+    /// sort digit), nothing per point.
     pub fn rebuild(&mut self, points: &[Vec3], radius: f32) {
         assert!(
             points.len() < u32::MAX as usize,
