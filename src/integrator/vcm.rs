@@ -676,7 +676,13 @@ impl<'a> VertexCm<'a> {
     }
 
     /// Traces the eye sub-path of one pixel and returns its estimate.
-    fn trace_eye_path(&self, pass: &EyePass, pixel: usize, stats: &mut IterationStats) -> Rgb {
+    fn trace_eye_path(
+        &self,
+        pass: &EyePass,
+        pixel: usize,
+        tentative: &mut Tentative<'a>,
+        stats: &mut IterationStats,
+    ) -> Rgb {
         let w = &pass.w;
         let camera = &self.ctx.camera;
         let seed = self.ctx.options.seed;
@@ -687,7 +693,7 @@ impl<'a> VertexCm<'a> {
         });
         let mut sampler =
             Sampler::eye(self.ctx.options.sampler, seed, pass.iteration, pixel as u64);
-        let mut tentative = Tentative::new(seed, pass.iteration, pixel);
+        tentative.start_pixel(pixel);
         let width = camera.width as usize;
         let [jx, jy] = sampler.next_2d();
         let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
@@ -720,7 +726,7 @@ impl<'a> VertexCm<'a> {
             if let (Some(upg), Some(gathered), Some(prev)) =
                 (&self.upg_merges, gathered, prev.as_ref())
             {
-                color += upg.from_camera(w, prev, hit.position, gathered, &mut tentative, stats)
+                color += upg.from_camera(w, prev, hit.position, gathered, tentative, stats)
                     * (1.0 / w.light_paths);
             }
             color += state.throughput * self.emission(w, &state, Some(&hit));
@@ -760,7 +766,7 @@ impl<'a> VertexCm<'a> {
                                 w,
                                 (&state, &hit, &bsdf),
                                 gathered,
-                                &mut tentative,
+                                tentative,
                                 stats,
                             );
                             color += state.throughput * merged * (1.0 / w.light_paths);
@@ -834,12 +840,16 @@ impl Integrator for VertexCm<'_> {
             .par_iter_mut()
             .enumerate()
             .with_max_len(EYE_TASK)
-            .map(|(pixel, value)| {
-                let mut stats = IterationStats::default();
-                let color = self.trace_eye_path(&pass, pixel, &mut stats);
-                add_sample(value, color, &mut stats.dropped_samples);
-                stats
-            })
+            // One list of pending UPG merges per task, its storage reused for the task's pixels.
+            .map_init(
+                || Tentative::new(self.ctx.options.seed, iteration),
+                |tentative, (pixel, value)| {
+                    let mut stats = IterationStats::default();
+                    let color = self.trace_eye_path(&pass, pixel, tentative, &mut stats);
+                    add_sample(value, color, &mut stats.dropped_samples);
+                    stats
+                },
+            )
             .reduce(IterationStats::default, |a, b| a + b);
         let stats = stats + eye_stats;
         self.upg = self.upg + stats.upg;

@@ -252,16 +252,27 @@ pub struct Tentative<'s> {
 }
 
 impl<'s> Tentative<'s> {
-    pub fn new(seed: u64, iteration: u64, pixel: usize) -> Self {
+    /// Empty lists for the eye sub-paths of `iteration`; [`Tentative::start_pixel`] names each.
+    pub fn new(seed: u64, iteration: u64) -> Self {
         Tentative {
             seed,
             iteration,
-            base: (pixel as u64) << 24,
+            base: 0,
             merges: 0,
             bounds: Vec::new(),
             rngs: Vec::new(),
             values: Vec::new(),
         }
+    }
+
+    /// Starts the merges of `pixel`'s eye sub-path, keeping the lists' storage: one parallel
+    /// task of the eye pass reuses it for all its pixels instead of allocating per pixel.
+    pub fn start_pixel(&mut self, pixel: usize) {
+        self.base = (pixel as u64) << 24;
+        self.merges = 0;
+        self.bounds.clear();
+        self.rngs.clear();
+        self.values.clear();
     }
 
     fn push(&mut self, bound: AngularBound<'s>, value: Rgb) {
