@@ -1,5 +1,6 @@
-//! Fixed-radius queries: the hash grid against SmallVCM's grid layout and a kd-tree (kiddo's
-//! `ImmutableKdTree`), on two workloads.
+//! Fixed-radius queries: the hash grid (its default, which takes pairs of cells unless the
+//! points crowd them, and 000's triplets of cells whatever the density) against SmallVCM's grid
+//! layout and a kd-tree (kiddo's `ImmutableKdTree`), on two workloads.
 //!
 //! - 000 Table 2.1: two independent point sets sampled area-uniformly over the triangles of the
 //!   Cornell box; the structures are built over the first and queried at points of the second.
@@ -12,11 +13,11 @@
 //!
 //! Each query counts its neighbours and sums their indices; all structures must agree on the
 //! totals. Timings are single-threaded; the grid's parallel build, its design, is measured as
-//! well. Grid and SmallVCM layout rebuild into their buffers of the previous sample, as they do
-//! across a render's iterations; the kd-tree is built anew. The grid's and SmallVCM's layout's
-//! builds, and the three structures' queries of each batch, run in turn within every sample, so
-//! a slow spell of a shared machine falls on all of them alike; the ratios (other / grid,
-//! medians of the samples' ratios where timed in turn) are printed at the end.
+//! well. The grids and SmallVCM layout rebuild into their buffers of the previous sample, as
+//! they do across a render's iterations; the kd-tree is built anew. The grids' and SmallVCM's
+//! layout's builds, and the four structures' queries of each batch, run in turn within every
+//! sample, so a slow spell of a shared machine falls on all of them alike; the ratios (other /
+//! grid, medians of the samples' ratios where timed in turn) are printed at the end.
 //!
 //! Run: `cargo bench --bench hashgrid`.
 
@@ -32,7 +33,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use vmerge::accel::{AccelKind, Ray};
 use vmerge::bsdf::TransportMode;
-use vmerge::hashgrid::HashGrid;
+use vmerge::hashgrid::{CellRuns, HashGrid};
 use vmerge::light::Aim;
 use vmerge::sampling::{uniform_triangle, Distribution1D, Rng};
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
@@ -474,13 +475,21 @@ fn measure(
             })
         });
     }
-    let (mut grid, mut flat) = (HashGrid::default(), FlatGrid::default());
-    group.bench_function("build/grid-and-smallvcm-layout", |b| {
+    let (mut grid, mut triplets, mut flat) = (
+        HashGrid::default(),
+        HashGrid::default(),
+        FlatGrid::default(),
+    );
+    group.bench_function("build/grids-and-smallvcm-layout", |b| {
         b.iter_custom(|iters| {
             record.time_interleaved(
                 &mut [
                     (&format!("{key}/build/grid"), &mut || {
                         single.install(|| grid.rebuild(w.points, w.radius))
+                    }),
+                    (&format!("{key}/build/triplets"), &mut || {
+                        single
+                            .install(|| triplets.rebuild_as(w.points, w.radius, CellRuns::Triplets))
                     }),
                     (&format!("{key}/build/flat"), &mut || {
                         flat.rebuild(w.points, w.radius)
@@ -498,10 +507,20 @@ fn measure(
         })
     });
     grid.rebuild(w.points, w.radius);
+    triplets.rebuild_as(w.points, w.radius, CellRuns::Triplets);
     flat.rebuild(w.points, w.radius);
     let query_arrays: Vec<[f32; 3]> = w.queries.iter().map(|q| q.to_array()).collect();
     let expected = query_tree(tree, &query_arrays, w.radius);
     assert_eq!(query_grid(&grid, w.queries), expected, "grid, {key}");
+    assert_eq!(
+        query_grid(&triplets, w.queries),
+        expected,
+        "triplets, {key}"
+    );
+    record.0.borrow_mut().insert(
+        format!("{key}/pairs"),
+        vec![f64::from(u8::from(grid.runs() == CellRuns::Pairs))],
+    );
     assert_eq!(
         query_flat(&flat, w.queries),
         expected,
@@ -514,9 +533,9 @@ fn measure(
     let batches = w.queries.len() / w.batch;
     let batch = |next: usize| next * w.batch..(next + 1) * w.batch;
     let mut next = 0;
-    group.bench_function("query/kd-tree-grid-and-smallvcm-layout", |b| {
+    group.bench_function("query/kd-tree-grids-and-smallvcm-layout", |b| {
         b.iter_custom(|iters| {
-            // All three answer the same batch, the next one each round.
+            // All four answer the same batch, the next one each round.
             let current = Cell::new(next);
             let queries = || batch(current.get());
             let elapsed = record.time_interleaved(
@@ -527,6 +546,9 @@ fn measure(
                     }),
                     (&format!("{key}/query/grid"), &mut || {
                         black_box(query_grid(&grid, &w.queries[queries()]));
+                    }),
+                    (&format!("{key}/query/triplets"), &mut || {
+                        black_box(query_grid(&triplets, &w.queries[queries()]));
                     }),
                     (&format!("{key}/query/flat"), &mut || {
                         black_box(query_flat(&flat, &w.queries[queries()]));
@@ -541,77 +563,103 @@ fn measure(
     group.finish();
 }
 
-/// One table row per workload: build times in ms, query times in µs per query, ratios of the
-/// other structures' times to the grid's.
+/// One table row per workload: the default grid's runs (pairs or triplets of cells), build
+/// times in ms, query times in µs per query, ratios of the other structures' times to the
+/// default grid's.
 fn print_table(record: &Record, rows: &[(String, String, String, usize)]) {
     let threads = rayon::current_num_threads();
     println!(
-        "{:>22} {:>9} | {:>9} {:>9} {:>9} {:>9} {:>6} {:>6} | {:>9} {:>9} {:>9} {:>6} {:>6}",
+        "{:>22} {:>9} {:>5} | {:>8} {:>8} {:>8} {:>8} {:>8} {:>6} {:>6} {:>6} | {:>8} {:>8} {:>8} {:>8} {:>6} {:>6} {:>6}",
         "workload",
         "nbrs/q",
+        "runs",
         "kd ms",
         "grid ms",
         format!("grid {threads}t"),
+        "trip ms",
         "flat ms",
         "kd/g",
+        "trip/g",
         "flat/g",
         "kd us/q",
         "grid us/q",
+        "trip us/q",
         "flat us/q",
         "kd/g",
+        "trip/g",
         "flat/g"
     );
     for (label, key, tree_key, batch) in rows {
         let get = |what: &str| record.median(&format!("{key}/{what}"));
+        // What was timed interleaved with the grid is compared by the median of the samples'
+        // ratios: the other layouts' builds, and every query.
+        let ratio = |other: &str, grid: &str| {
+            record.median_ratio(&format!("{key}/{other}"), &format!("{key}/{grid}"))
+        };
         let (
             Some(build_kd),
             Some(build_grid),
             Some(build_par),
+            Some(build_triplets),
             Some(build_flat),
             Some(query_kd),
             Some(query_grid),
+            Some(query_triplets),
             Some(query_flat),
             Some(neighbours),
+            Some(pairs),
         ) = (
             record.median(&format!("{tree_key}/build/kd-tree")),
             get("build/grid"),
             get("build/grid-par"),
+            get("build/triplets"),
             get("build/flat"),
             get("query/kd-tree"),
             get("query/grid"),
+            get("query/triplets"),
             get("query/flat"),
             get("neighbours"),
+            get("pairs"),
         )
         else {
             continue;
         };
-        // What was timed interleaved with the grid is compared by the median of the samples'
-        // ratios: SmallVCM's layout's builds, and every query.
-        let ratio = |other: &str, grid: &str| {
-            record.median_ratio(&format!("{key}/{other}"), &format!("{key}/{grid}"))
-        };
-        let (Some(build_flat_ratio), Some(query_kd_ratio), Some(query_flat_ratio)) = (
+        let (
+            Some(build_triplets_ratio),
+            Some(build_flat_ratio),
+            Some(query_kd_ratio),
+            Some(query_triplets_ratio),
+            Some(query_flat_ratio),
+        ) = (
+            ratio("build/triplets", "build/grid"),
             ratio("build/flat", "build/grid"),
             ratio("query/kd-tree", "query/grid"),
+            ratio("query/triplets", "query/grid"),
             ratio("query/flat", "query/grid"),
-        ) else {
+        )
+        else {
             continue;
         };
         let per_query = 1e6 / *batch as f64;
         println!(
-            "{:>22} {:>9.1} | {:>9.1} {:>9.1} {:>9.1} {:>9.1} {:>6.2} {:>6.2} | {:>9.3} {:>9.3} {:>9.3} {:>6.2} {:>6.2}",
+            "{:>22} {:>9.1} {:>5} | {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>6.2} {:>6.2} {:>6.2} | {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>6.2} {:>6.2} {:>6.2}",
             label,
             neighbours,
+            if pairs > 0.5 { "pairs" } else { "trip" },
             build_kd * 1e3,
             build_grid * 1e3,
             build_par * 1e3,
+            build_triplets * 1e3,
             build_flat * 1e3,
             build_kd / build_grid,
+            build_triplets_ratio,
             build_flat_ratio,
             query_kd * per_query,
             query_grid * per_query,
+            query_triplets * per_query,
             query_flat * per_query,
             query_kd_ratio,
+            query_triplets_ratio,
             query_flat_ratio
         );
     }
@@ -701,8 +749,9 @@ fn benches(c: &mut Criterion) {
     }
 
     println!(
-        "\nTimes are medians over samples; flat = SmallVCM's layout; ratios other / grid. \
-         SmallVCM's layout's build and all queries are timed interleaved with the grid's, \
+        "\nTimes are medians over samples; grid = the default (runs: pairs or triplets of \
+         cells), trip = triplets of cells (000), flat = SmallVCM's layout; ratios other / grid. \
+         The other layouts' builds and all queries are timed interleaved with the grid's, \
          their ratios the medians of the samples' ratios."
     );
     println!("000 Table 2.1 (Cornell box surfaces, size {diagonal:.3}):");

@@ -1,14 +1,19 @@
-//! The triplet-cell hash grid of 000 sec. 2.4.9: fixed-radius queries over light vertices.
+//! The run-of-cells hash grid of 000 sec. 2.4.9: fixed-radius queries over light vertices.
 //!
-//! Points are sorted by cell (z, y, x) with cells of side r (000 eq. 2.87), so the points of one
-//! cell, and of three cells adjacent along x, are contiguous. A hash table stores for each cell
-//! the range spanning the cell and its two x-neighbours, so a query visits 3 x 3 ranges (9
-//! lookups) instead of 27 cells, in long streaming runs.
+//! Points are sorted by cell (z, y, x) (000 eq. 2.87), so the points of one cell, and of cells
+//! adjacent along x, are contiguous. A hash table stores for each cell the range spanning a run
+//! of cells along x starting there, so a query reads one range per row of cells it touches. The
+//! thesis's runs are triplets of cells of side r: 3 x 3 ranges (9 lookups instead of 27 cells).
+//! Pairs of cells of side 2r cover the same sphere in 2 x 2 ranges, 4 lookups into a table a
+//! quarter as long, at the price of testing 16/9 as many points on a surface: on the sparse
+//! light vertices of a render (about ten neighbours per query) the lookups, cache misses in a
+//! table of tens of megabytes, cost more than the tests, on dense sets the tests do. A rebuild
+//! takes pairs unless the points crowd their cells ([`DENSE_PAIR_CELL`]).
 //!
 //! Cell coordinates are taken relative to the points' lowest cell and packed into one u64 key
 //! (x lowest), so the sort is a radix sort over only the key bits in use and the table is a flat
 //! open-addressing array of (key, range) slots: one multiply to hash, one u64 compare to match.
-//! The cells are those of the world grid (floor(p / r)), whatever the points' extent, so the
+//! The cells are those of the world grid (floor(p / side)), whatever the points' extent, so the
 //! order of query results depends only on the points, never on threads.
 
 use glam::{Vec3, Vec3A};
@@ -29,11 +34,46 @@ pub const QUERY_BATCH: usize = 32;
 const _: () = assert!(QUERY_BATCH <= u64::BITS as usize);
 /// Fewest items per part of a parallel radix-sort pass: smaller sets sort on one thread.
 const SORT_PART_MIN: usize = 1 << 15;
+/// Points per occupied cell of side 2r beyond which a rebuild takes triplets: there a query
+/// finds about 200 neighbours, where the two layouts answer about as fast (`cargo bench --bench
+/// hashgrid`).
+pub const DENSE_PAIR_CELL: usize = 256;
+/// Points the density estimate of a rebuild looks at, at most about.
+const DENSITY_SAMPLE: usize = 1 << 12;
 
-/// One table slot: a triplet's key (`EMPTY` when free) and the range of its points, begin in
-/// the high half. Atomic so the triplets are inserted by all threads at once: the table is tens
-/// of megabytes on large sparse sets, and one thread inserting alone waits on a cache miss per
-/// triplet while the others idle. Where a key lands depends on the threads; what a lookup
+/// How the table's ranges run along x, which sets the cells' side.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum CellRuns {
+    /// Cells of side 2r, a range spanning a cell and its +x neighbour: 2 x 2 lookups a query.
+    #[default]
+    Pairs,
+    /// Cells of side r, a range spanning a cell and its two +x neighbours (000 sec. 2.4.9):
+    /// 3 x 3 lookups a query.
+    Triplets,
+}
+
+impl CellRuns {
+    pub const ALL: [CellRuns; 2] = [CellRuns::Pairs, CellRuns::Triplets];
+
+    /// Cells in one run.
+    const fn len(self) -> i64 {
+        match self {
+            CellRuns::Pairs => 2,
+            CellRuns::Triplets => 3,
+        }
+    }
+
+    /// A cell side such that a sphere of radius r spans at most `len` cells per axis (but
+    /// when rounding puts its centre on a face).
+    fn cell_side(self, radius: f32) -> f32 {
+        2.0 * radius / (self.len() - 1) as f32
+    }
+}
+
+/// One table slot: a run's key (`EMPTY` when free) and the range of its points, begin in the
+/// high half. Atomic so the runs are inserted by all threads at once: the table is tens of
+/// megabytes on large sparse sets, and one thread inserting alone waits on a cache miss per
+/// run while the others idle. Where a key lands depends on the threads; what a lookup
 /// returns does not. Relaxed order suffices: the fill has ended (rayon joins its threads)
 /// before any query starts.
 struct Slot {
@@ -58,6 +98,9 @@ impl Slot {
 pub struct HashGrid {
     radius: f32,
     radius_sq: f32,
+    runs: CellRuns,
+    /// Cells in a run, `runs.len()`.
+    run: i64,
     inv_cell: f32,
     /// How far from a query its cells are taken: the radius and a margin for rounding.
     reach: f32,
@@ -77,8 +120,8 @@ pub struct HashGrid {
     ys: Vec<f32>,
     zs: Vec<f32>,
     indices: Vec<u32>,
-    /// Triplet key -> range of points covering the cell and its x-neighbours; linear probing,
-    /// a power of two long.
+    /// Key of a run's first cell -> range of the run's points; linear probing, a power of
+    /// two long.
     table: Vec<Slot>,
     shift: u32,
     /// The sort's and the table build's buffers, kept from one rebuild to the next: points
@@ -88,6 +131,8 @@ pub struct HashGrid {
     wide: [Vec<Record<u128>>; 2],
     /// Distinct cells in order, each with the end of its range.
     cells: Vec<(u64, u32)>,
+    /// The pair-cell keys of the density estimate's sample.
+    sample_keys: Vec<u64>,
     /// The sort's digit counts, then the number of cells ending in each chunk of points.
     histograms: Vec<u32>,
 }
@@ -102,32 +147,88 @@ impl HashGrid {
         grid.wide = Default::default();
         grid.cells = Vec::new();
         grid.histograms = Vec::new();
+        grid.sample_keys = Vec::new();
         grid
     }
 
     /// Rebuilds the grid over `points` for the given radius (> 0), reusing its buffers: once
     /// they have grown to the largest point set, a rebuild allocates only the lists of output
     /// slices its parallel passes write to (one entry per chunk of points, or per thread and
-    /// sort digit), nothing per point.
+    /// sort digit), nothing per point. Pairs of cells, or triplets where the points crowd
+    /// them ([`DENSE_PAIR_CELL`]).
     pub fn rebuild(&mut self, points: &[Vec3], radius: f32) {
+        let bounds = bounds(points);
+        let runs = if self.crowded(points, bounds, radius) {
+            CellRuns::Triplets
+        } else {
+            CellRuns::Pairs
+        };
+        self.arrange_as(points, bounds, radius, runs);
+        self.fill_table();
+    }
+
+    /// [`Self::rebuild`] with the given runs, whatever the points' density.
+    pub fn rebuild_as(&mut self, points: &[Vec3], radius: f32, runs: CellRuns) {
+        self.arrange_as(points, bounds(points), radius, runs);
+        self.fill_table();
+    }
+
+    /// The runs of the last rebuild.
+    pub fn runs(&self) -> CellRuns {
+        self.runs
+    }
+
+    /// Whether more than [`DENSE_PAIR_CELL`] points share an occupied cell of side 2r on
+    /// average, judged by every k-th point (about [`DENSITY_SAMPLE`] of them), so the points
+    /// are sorted once: the sample, thinned from cells of c points each, holds c / k points
+    /// per occupied cell over the chance 1 - e^(-c / k) that a cell keeps one (Poisson
+    /// thinning; exact for k = 1). Deterministic: the sample is taken in the input's order.
+    fn crowded(&mut self, points: &[Vec3], bounds: (Vec3, Vec3), radius: f32) -> bool {
+        if points.is_empty() {
+            return false;
+        }
+        self.set_cells(radius, CellRuns::Pairs);
+        self.fit_key_space(bounds);
+        let step = (points.len() / DENSITY_SAMPLE).max(1);
+        let mut keys = std::mem::take(&mut self.sample_keys);
+        keys.clear();
+        keys.extend(points.iter().step_by(step).map(|&p| self.key_of(p)));
+        keys.sort_unstable();
+        let sampled = keys.len();
+        keys.dedup();
+        let per_cell = DENSE_PAIR_CELL as f64 / step as f64;
+        let threshold = per_cell / (1.0 - (-per_cell).exp());
+        let crowded = sampled as f64 > threshold * keys.len() as f64;
+        self.sample_keys = keys;
+        crowded
+    }
+
+    /// The radius and cell side of the given runs.
+    fn set_cells(&mut self, radius: f32, runs: CellRuns) {
+        self.radius = radius;
+        self.radius_sq = radius * radius;
+        self.runs = runs;
+        self.run = runs.len();
+        self.inv_cell = 1.0 / runs.cell_side(radius);
+        self.reach = radius * (1.0 + 1e-6);
+    }
+
+    /// Sorts the points into cells for the given runs and finds the distinct cells.
+    fn arrange_as(&mut self, points: &[Vec3], bounds: (Vec3, Vec3), radius: f32, runs: CellRuns) {
         assert!(
             points.len() < u32::MAX as usize,
             "fewer than u32::MAX points"
         );
-        self.radius = radius;
-        self.radius_sq = radius * radius;
-        self.inv_cell = 1.0 / radius;
-        self.reach = radius * (1.0 + 1e-6);
-        let n = points.len();
+        self.set_cells(radius, runs);
         self.xs.clear();
         self.ys.clear();
         self.zs.clear();
         self.indices.clear();
-        if n == 0 {
-            self.table.clear();
+        self.cells.clear();
+        if points.is_empty() {
             return;
         }
-        let bits = self.fit_key_space(points);
+        let bits = self.fit_key_space(bounds);
         if bits <= 32 {
             let mut items = std::mem::take(&mut self.narrow);
             self.arrange(points, &mut items, bits);
@@ -137,7 +238,6 @@ impl HashGrid {
             self.arrange(points, &mut items, bits);
             self.wide = items;
         }
-        self.fill_table();
     }
 
     pub fn radius(&self) -> f32 {
@@ -209,42 +309,46 @@ impl HashGrid {
         let Some((lo, hi)) = self.cell_bounds(q) else {
             return;
         };
-        let (y, z) = (self.stride_y, self.stride_z);
-        let key = |x: i64, y: i64, z: i64| self.key([x, y, z]);
-        if (0..3).all(|axis| hi[axis] - lo[axis] <= 2) {
-            // The sphere is inside 3 x 3 x 3 cells: the triplets of 9 rows. All lookups
-            // first: their cache misses, and those of the ranges' first points, overlap
-            // instead of each waiting for the previous range's scan.
-            let first = key(lo[0] + 1, lo[1], lo[2]);
-            let ranges = [
-                first,
-                first + y,
-                first + 2 * y,
-                first + z,
-                first + z + y,
-                first + z + 2 * y,
-                first + 2 * z,
-                first + 2 * z + y,
-                first + 2 * z + 2 * y,
-            ]
-            .map(|row| self.lookup(row));
-            for range in ranges {
-                self.scan(range, q, &mut visit);
+        if (0..3).all(|axis| hi[axis] - lo[axis] < self.run) {
+            let first = self.key(lo);
+            match self.runs {
+                CellRuns::Pairs => self.scan_rows::<2, 4>(first, q, &mut visit),
+                CellRuns::Triplets => self.scan_rows::<3, 9>(first, q, &mut visit),
             }
         } else {
-            // A sphere touching four cells along an axis (its centre within rounding of a
-            // cell face): disjoint triplets cover each row.
+            // A sphere touching one cell more along an axis (its centre within rounding of a
+            // cell face): disjoint runs cover each row.
             for z in lo[2]..=hi[2] {
                 for y in lo[1]..=hi[1] {
-                    for x in (lo[0] + 1..=hi[0] + 1).step_by(3) {
-                        self.scan(self.lookup(key(x, y, z)), q, &mut visit);
+                    for x in (lo[0]..=hi[0]).step_by(self.run as usize) {
+                        self.scan(self.lookup(self.key([x, y, z])), q, &mut visit);
                     }
                 }
             }
         }
     }
 
-    /// The range of the triplet `key`, empty if no point lies in it.
+    /// The `RUN` x `RUN` rows (`ROWS` of them) of runs from the run keyed `first`, the sphere
+    /// inside their cells. All lookups first: their cache misses, and those of the ranges'
+    /// first points, overlap instead of each waiting for the previous range's scan.
+    #[inline]
+    fn scan_rows<const RUN: u64, const ROWS: usize>(
+        &self,
+        first: u64,
+        q: Vec3,
+        visit: &mut impl FnMut(usize, f32),
+    ) {
+        let (y, z) = (self.stride_y, self.stride_z);
+        let ranges: [_; ROWS] = std::array::from_fn(|row| {
+            let row = row as u64;
+            self.lookup(first + row % RUN * y + row / RUN * z)
+        });
+        for range in ranges {
+            self.scan(range, q, visit);
+        }
+    }
+
+    /// The range of the run `key`, empty if no point lies in it.
     #[inline]
     fn lookup(&self, key: u64) -> std::ops::Range<usize> {
         let mask = self.table.len() - 1;
@@ -302,19 +406,9 @@ impl HashGrid {
 
     /// The lowest cell and the span per axis (cells are monotone in the coordinate, so they
     /// are the cells of the bounding box's corners), and the key strides: coordinates padded
-    /// by two on each side, so the triplet keys of any cell and a query's neighbour rows stay
+    /// by two on each side, so the run keys of any cell and a query's neighbour rows stay
     /// inside the key space without wrapping into another row. Returns the key bits in use.
-    fn fit_key_space(&mut self, points: &[Vec3]) -> u32 {
-        let (min, max) = points
-            .par_iter()
-            .fold(
-                || (Vec3::INFINITY, Vec3::NEG_INFINITY),
-                |(min, max), &p| (min.min(p), max.max(p)),
-            )
-            .reduce(
-                || (Vec3::INFINITY, Vec3::NEG_INFINITY),
-                |(a, b), (c, d)| (a.min(c), b.max(d)),
-            );
+    fn fit_key_space(&mut self, (min, max): (Vec3, Vec3)) -> u32 {
         for axis in 0..3 {
             self.low[axis] = cell(min[axis], self.inv_cell);
             self.span[axis] =
@@ -425,17 +519,22 @@ impl HashGrid {
         padded(offset.x) + padded(offset.y) * self.stride_y + padded(offset.z) * self.stride_z
     }
 
-    /// Inserts every triplet once, in key order: the triplet centred on key t spans the cells
-    /// with keys t - 1 ..= t + 1, consecutive in `cells` (sorted order makes their union one
-    /// contiguous range; padding keeps other rows' cells out of it).
+    /// Inserts every run that holds a point once, in key order: the run keyed t spans the
+    /// cells with keys t ..= t + run - 1, consecutive in `cells` (sorted order makes their
+    /// union one contiguous range; padding keeps other rows' cells out of it).
     fn fill_table(&mut self) {
+        if self.cells.is_empty() {
+            self.table.clear();
+            return;
+        }
         let cells = &self.cells;
-        // A cell adds the triplets its predecessor's did not: a gap below 3 shares keys.
-        let new_triplets = |i: usize| match i {
-            0 => 3,
-            _ => (cells[i].0 - cells[i - 1].0).min(3) as usize,
+        let run = self.run as u64;
+        // A cell adds the runs its predecessor's did not: a gap below `run` shares keys.
+        let new_runs = |i: usize| match i {
+            0 => run as usize,
+            _ => (cells[i].0 - cells[i - 1].0).min(run) as usize,
         };
-        let count: usize = (0..cells.len()).into_par_iter().map(new_triplets).sum();
+        let count: usize = (0..cells.len()).into_par_iter().map(new_runs).sum();
         // Load at most two thirds: a miss, the commonest lookup on surfaces, ends after a few
         // probes in one or two cache lines.
         let capacity = (count + count / 2).next_power_of_two().max(16);
@@ -455,24 +554,25 @@ impl HashGrid {
             .enumerate()
             .for_each(|(chunk, part)| {
                 let start = chunk * CHUNK;
-                // Triplets up to `previous` are the earlier cells' (keys are above 0).
-                let mut previous = match start {
+                // Runs below `next` are the earlier cells'. Cells [first, last) have keys in
+                // t ..= t + run - 1 for the current run t; no earlier chunk's cell is among
+                // them, as t is past its last key.
+                let mut next = match start {
                     0 => 0,
                     _ => cells[start - 1].0 + 1,
                 };
-                // Cells [first, last) have keys in t - 1 ..= t + 1 for the current triplet t;
-                // no earlier chunk's cell is among them, as t - 1 is past its last key.
                 let (mut first, mut last) = (start, start);
                 for &(cell, _) in part {
-                    for t in [cell - 1, cell, cell + 1] {
-                        if t <= previous {
+                    // Keys are padded by 2, so above `run` - 1.
+                    for t in cell + 1 - run..=cell {
+                        if t < next {
                             continue;
                         }
-                        previous = t;
-                        while cells[first].0 < t - 1 {
+                        next = t + 1;
+                        while cells[first].0 < t {
                             first += 1;
                         }
-                        while last < cells.len() && cells[last].0 <= t + 1 {
+                        while last < cells.len() && cells[last].0 < t + run {
                             last += 1;
                         }
                         let begin = if first == 0 { 0 } else { cells[first - 1].1 };
@@ -680,8 +780,22 @@ fn radix_sort<T: Item>(
     }
 }
 
+/// The points' bounding box, (min, max).
+fn bounds(points: &[Vec3]) -> (Vec3, Vec3) {
+    points
+        .par_iter()
+        .fold(
+            || (Vec3::INFINITY, Vec3::NEG_INFINITY),
+            |(min, max), &p| (min.min(p), max.max(p)),
+        )
+        .reduce(
+            || (Vec3::INFINITY, Vec3::NEG_INFINITY),
+            |(a, b), (c, d)| (a.min(c), b.max(d)),
+        )
+}
+
 /// Fibonacci hashing: the top bits of the key times 2^64 / phi, which spreads runs of
-/// consecutive keys (the triplets of a row) evenly over a table of 2^(64 - shift) slots.
+/// consecutive keys (the runs of a row) evenly over a table of 2^(64 - shift) slots.
 #[inline]
 fn fibonacci_slot(key: u64, shift: u32) -> usize {
     (key.wrapping_mul(0x9e37_79b9_7f4a_7c15) >> shift) as usize
@@ -708,16 +822,24 @@ mod tests {
             .collect()
     }
 
+    /// Both layouts against brute force.
     fn check(points: &[Vec3], queries: &[Vec3], r: f32) {
-        let grid = HashGrid::build(points, r);
-        for &q in queries {
-            let mut found = Vec::new();
-            grid.query(q, |i, d2| {
-                assert!((d2 - (points[i] - q).length_squared()).abs() <= 1e-6 * d2.max(1e-30));
-                found.push(i);
-            });
-            found.sort_unstable();
-            assert_eq!(found, brute_force(points, q, r), "query {q} radius {r}");
+        let mut grid = HashGrid::default();
+        for runs in CellRuns::ALL {
+            grid.rebuild_as(points, r, runs);
+            for &q in queries {
+                let mut found = Vec::new();
+                grid.query(q, |i, d2| {
+                    assert!((d2 - (points[i] - q).length_squared()).abs() <= 1e-6 * d2.max(1e-30));
+                    found.push(i);
+                });
+                found.sort_unstable();
+                assert_eq!(
+                    found,
+                    brute_force(points, q, r),
+                    "query {q} radius {r}, {runs:?}"
+                );
+            }
         }
     }
 
@@ -778,6 +900,21 @@ mod tests {
     }
 
     #[test]
+    fn dense_sets_take_triplets() {
+        let mut rng = Rng::for_sample(12, 0, 0, Stream::Eye);
+        let points = random_points(&mut rng, 50_000, 1);
+        let mut grid = HashGrid::default();
+        // On the three planes about one point per occupied pair cell, then about 800.
+        grid.rebuild(&points, 0.005);
+        assert_eq!(grid.runs(), CellRuns::Pairs);
+        grid.rebuild(&points, 0.25);
+        assert_eq!(grid.runs(), CellRuns::Triplets);
+        check(&points, &points[..200], 0.25);
+        grid.rebuild(&points, 0.005);
+        assert_eq!(grid.runs(), CellRuns::Pairs);
+    }
+
+    #[test]
     fn points_on_cell_faces() {
         let r = 0.25;
         let points: Vec<Vec3> = (-8..=8)
@@ -831,7 +968,8 @@ mod tests {
             let points = awkward_points(&mut rng, n, r);
             let mut queries = awkward_points(&mut rng, 40, r);
             queries.extend(points.iter().take(40));
-            grid.rebuild(&points, r);
+            let runs = CellRuns::ALL[case / 6 % 2];
+            grid.rebuild_as(&points, r, runs);
             assert_eq!(grid.len(), n);
             for &q in &queries {
                 let mut found = Vec::new();
@@ -843,7 +981,7 @@ mod tests {
                 assert_eq!(
                     found,
                     brute_force(&points, q, r),
-                    "case {case}, query {q}, r {r}"
+                    "case {case}, query {q}, r {r}, {runs:?}"
                 );
             }
         }
@@ -946,22 +1084,25 @@ mod tests {
         assert_eq!(found, results(&many));
         // Within a row the points come by cell, then by index.
         let mut grid = HashGrid::default();
-        grid.rebuild(&points, 0.05);
-        let key = |i: usize| {
-            let p = points[i] / 0.05;
-            (p.x.floor() as i64, i)
-        };
-        let q = points[0];
-        let mut row = Vec::new();
-        grid.query(q, |i, _| {
-            let p = points[i] / 0.05;
-            let row_of_q = ((q.y / 0.05).floor(), (q.z / 0.05).floor());
-            if (p.y.floor(), p.z.floor()) == row_of_q {
-                row.push(i);
-            }
-        });
-        assert!(row.len() > 1);
-        assert!(row.windows(2).all(|w| key(w[0]) < key(w[1])));
+        for runs in CellRuns::ALL {
+            grid.rebuild_as(&points, 0.05, runs);
+            let side = runs.cell_side(0.05);
+            let key = |i: usize| {
+                let p = points[i] / side;
+                (p.x.floor() as i64, i)
+            };
+            let q = points[0];
+            let mut row = Vec::new();
+            grid.query(q, |i, _| {
+                let p = points[i] / side;
+                let row_of_q = ((q.y / side).floor(), (q.z / side).floor());
+                if (p.y.floor(), p.z.floor()) == row_of_q {
+                    row.push(i);
+                }
+            });
+            assert!(row.len() > 1);
+            assert!(row.windows(2).all(|w| key(w[0]) < key(w[1])), "{runs:?}");
+        }
     }
 
     #[test]

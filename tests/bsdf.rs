@@ -139,12 +139,29 @@ fn sampling_matches_the_pdf() {
         phong(0.0, 0.9, 1000.0),
         phong(0.45, 0.3, 30.0),
         phong(0.3, 0.6, 50.0),
+        // Taken as 40, as an exporter's decimal of a whole exponent is.
+        phong(0.3, 0.6, 39.999996),
+        phong(0.3, 0.6, 12.5),
     ];
     for (i, kind) in kinds.iter().enumerate() {
         for (j, angle) in [0.0f32, 30.0, 60.0, 85.0].into_iter().enumerate() {
             chi_square(kind, wo_at(angle), 400_000, (i * 10 + j) as u64);
         }
     }
+}
+
+#[test]
+fn exponents_within_rounding_of_a_whole_number_are_whole() {
+    let wo = wo_at(30.0);
+    let near_mirror = Vec3::new(-wo.x + 0.2, -wo.y, wo.z).normalize();
+    let at = |exponent| {
+        let kind = phong(0.3, 0.6, exponent);
+        let bsdf = Bsdf::new(&kind, Vec3::Z, wo, TransportMode::Radiance).unwrap();
+        let e = bsdf.eval(near_mirror);
+        (e.f, e.pdf_w)
+    };
+    assert_eq!(at(39.999996), at(40.0));
+    assert_ne!(at(39.99), at(40.0));
 }
 
 /// Mean of f cos / pdf over samples: the directional albedo.

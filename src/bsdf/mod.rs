@@ -332,7 +332,8 @@ impl<'a> Bsdf<'a> {
             MaterialKind::Lambert { .. } => lobes.push(diffuse(1.0)),
             MaterialKind::Phong { exponent, .. } => {
                 let Albedo { kd, ks } = self.albedo;
-                let pd = phong::Phong::new(kd, ks, exponent).diffuse_probability;
+                let phong = phong::Phong::new(kd, ks, exponent);
+                let pd = phong.diffuse_probability;
                 if pd > 0.0 {
                     lobes.push(diffuse(pd));
                 }
@@ -340,7 +341,9 @@ impl<'a> Bsdf<'a> {
                     lobes.push(Lobe {
                         weight: 1.0 - pd,
                         axis: self.frame.to_world(reflect_local(self.wo_local)),
-                        shape: LobeShape::PowerCosine { exponent },
+                        shape: LobeShape::PowerCosine {
+                            exponent: phong.exponent,
+                        },
                     });
                 }
             }

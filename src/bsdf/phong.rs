@@ -13,7 +13,7 @@ use std::f32::consts::FRAC_1_PI;
 pub(super) struct Phong {
     kd: Rgb,
     ks: Rgb,
-    exponent: f32,
+    pub(super) exponent: f32,
     /// The exponent when it is a whole number (as most scenes' are): `powi`'s few multiplies
     /// then replace `powf`, which the merge loop and every BSDF evaluation would pay.
     whole_exponent: Option<i32>,
@@ -25,9 +25,14 @@ impl Phong {
     pub(super) fn new(kd: Rgb, ks: Rgb, exponent: f32) -> Self {
         let (d, s) = (kd.average(), ks.average());
         let diffuse_probability = if d + s > 0.0 { d / (d + s) } else { 1.0 };
-        // A round trip through i32 (two conversion instructions; `fract` would be a libm call).
-        let whole = exponent as i32;
-        let whole_exponent = (whole as f32 == exponent).then_some(whole);
+        // Exporters write whole exponents as single-precision decimals (40 as 39.999996):
+        // within 1e-5 of a whole number the exponent is that number, a change of the lobe far
+        // below any render's noise, so `powi` serves it too. Rounded through i32 (exponents are
+        // >= 0; `round` would be a libm call).
+        let whole = (exponent + 0.5) as i32;
+        let whole_exponent =
+            ((whole as f32 - exponent).abs() <= 1e-5 * exponent.max(1.0)).then_some(whole);
+        let exponent = whole_exponent.map_or(exponent, |n| n as f32);
         Phong {
             kd,
             ks,
