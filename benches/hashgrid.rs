@@ -445,7 +445,8 @@ struct Workload<'a> {
 }
 
 /// Times the builds and queries of one workload under `key`; the kd-tree's build once per
-/// point set (`tree_key`), as it does not depend on the radius.
+/// point set (`tree_key`), as it does not depend on the radius. Returns the runs the default
+/// grid took.
 fn measure(
     c: &mut Criterion,
     record: &Record,
@@ -453,7 +454,7 @@ fn measure(
     w: &Workload,
     tree: &KdTree,
     tree_key: &str,
-) {
+) -> CellRuns {
     let threads = rayon::current_num_threads();
     let key = &w.name;
     let mut group = c.benchmark_group(format!("hashgrid/{key}"));
@@ -517,10 +518,6 @@ fn measure(
         expected,
         "triplets, {key}"
     );
-    record.0.borrow_mut().insert(
-        format!("{key}/pairs"),
-        vec![f64::from(u8::from(grid.runs() == CellRuns::Pairs))],
-    );
     assert_eq!(
         query_flat(&flat, w.queries),
         expected,
@@ -561,12 +558,23 @@ fn measure(
         })
     });
     group.finish();
+    grid.runs()
+}
+
+/// A printed table's row: its label, the record's keys of the workload and of its point set's
+/// kd-tree, the queries per timed iteration, and the runs the default grid took.
+struct Row {
+    label: String,
+    key: String,
+    tree_key: String,
+    batch: usize,
+    runs: CellRuns,
 }
 
 /// One table row per workload: the default grid's runs (pairs or triplets of cells), build
 /// times in ms, query times in µs per query, ratios of the other structures' times to the
 /// default grid's.
-fn print_table(record: &Record, rows: &[(String, String, String, usize)]) {
+fn print_table(record: &Record, rows: &[Row]) {
     let threads = rayon::current_num_threads();
     println!(
         "{:>22} {:>9} {:>5} | {:>8} {:>8} {:>8} {:>8} {:>8} {:>6} {:>6} {:>6} | {:>8} {:>8} {:>8} {:>8} {:>6} {:>6} {:>6}",
@@ -589,7 +597,14 @@ fn print_table(record: &Record, rows: &[(String, String, String, usize)]) {
         "trip/g",
         "flat/g"
     );
-    for (label, key, tree_key, batch) in rows {
+    for Row {
+        label,
+        key,
+        tree_key,
+        batch,
+        runs,
+    } in rows
+    {
         let get = |what: &str| record.median(&format!("{key}/{what}"));
         // What was timed interleaved with the grid is compared by the median of the samples'
         // ratios: the other layouts' builds, and every query.
@@ -607,7 +622,6 @@ fn print_table(record: &Record, rows: &[(String, String, String, usize)]) {
             Some(query_triplets),
             Some(query_flat),
             Some(neighbours),
-            Some(pairs),
         ) = (
             record.median(&format!("{tree_key}/build/kd-tree")),
             get("build/grid"),
@@ -619,7 +633,6 @@ fn print_table(record: &Record, rows: &[(String, String, String, usize)]) {
             get("query/triplets"),
             get("query/flat"),
             get("neighbours"),
-            get("pairs"),
         )
         else {
             continue;
@@ -645,7 +658,10 @@ fn print_table(record: &Record, rows: &[(String, String, String, usize)]) {
             "{:>22} {:>9.1} {:>5} | {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>8.1} {:>6.2} {:>6.2} {:>6.2} | {:>8.3} {:>8.3} {:>8.3} {:>8.3} {:>6.2} {:>6.2} {:>6.2}",
             label,
             neighbours,
-            if pairs > 0.5 { "pairs" } else { "trip" },
+            match runs {
+                CellRuns::Pairs => "pairs",
+                CellRuns::Triplets => "trip",
+            },
             build_kd * 1e3,
             build_grid * 1e3,
             build_par * 1e3,
@@ -693,13 +709,14 @@ fn benches(c: &mut Criterion) {
                 batch,
                 radius: fraction * diagonal,
             };
-            measure(c, &record, &single, &workload, &tree, &n.to_string());
-            rows.push((
-                format!("{}M r {fraction}", n / 1_000_000),
-                workload.name,
-                n.to_string(),
+            let runs = measure(c, &record, &single, &workload, &tree, &n.to_string());
+            rows.push(Row {
+                label: format!("{}M r {fraction}", n / 1_000_000),
+                key: workload.name,
+                tree_key: n.to_string(),
                 batch,
-            ));
+                runs,
+            });
         }
     }
 
@@ -738,13 +755,14 @@ fn benches(c: &mut Criterion) {
                 batch: LIGHT_BATCH,
                 radius,
             };
-            measure(c, &record, &single, &workload, &tree, name);
-            light_rows.push((
-                format!("{name} {label}"),
-                workload.name,
-                name.to_string(),
-                LIGHT_BATCH,
-            ));
+            let runs = measure(c, &record, &single, &workload, &tree, name);
+            light_rows.push(Row {
+                label: format!("{name} {label}"),
+                key: workload.name,
+                tree_key: name.to_string(),
+                batch: LIGHT_BATCH,
+                runs,
+            });
         }
     }
 

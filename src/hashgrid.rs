@@ -99,8 +99,6 @@ pub struct HashGrid {
     radius: f32,
     radius_sq: f32,
     runs: CellRuns,
-    /// Cells in a run, `runs.len()`.
-    run: i64,
     inv_cell: f32,
     /// How far from a query its cells are taken: the radius and a margin for rounding.
     reach: f32,
@@ -208,7 +206,6 @@ impl HashGrid {
         self.radius = radius;
         self.radius_sq = radius * radius;
         self.runs = runs;
-        self.run = runs.len();
         self.inv_cell = 1.0 / runs.cell_side(radius);
         self.reach = radius * (1.0 + 1e-6);
     }
@@ -309,7 +306,7 @@ impl HashGrid {
         let Some((lo, hi)) = self.cell_bounds(q) else {
             return;
         };
-        if (0..3).all(|axis| hi[axis] - lo[axis] < self.run) {
+        if (0..3).all(|axis| hi[axis] - lo[axis] < self.runs.len()) {
             let first = self.key(lo);
             match self.runs {
                 CellRuns::Pairs => self.scan_rows::<2, 4>(first, q, &mut visit),
@@ -320,7 +317,7 @@ impl HashGrid {
             // cell face): disjoint runs cover each row.
             for z in lo[2]..=hi[2] {
                 for y in lo[1]..=hi[1] {
-                    for x in (lo[0]..=hi[0]).step_by(self.run as usize) {
+                    for x in (lo[0]..=hi[0]).step_by(self.runs.len() as usize) {
                         self.scan(self.lookup(self.key([x, y, z])), q, &mut visit);
                     }
                 }
@@ -528,7 +525,7 @@ impl HashGrid {
             return;
         }
         let cells = &self.cells;
-        let run = self.run as u64;
+        let run = self.runs.len() as u64;
         // A cell adds the runs its predecessor's did not: a gap below `run` shares keys.
         let new_runs = |i: usize| match i {
             0 => run as usize,
