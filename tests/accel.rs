@@ -5,6 +5,8 @@
 #![cfg_attr(not(feature = "embree"), allow(dead_code, unused_imports))]
 
 use glam::Vec3;
+#[cfg(feature = "embree")]
+use vmerge::accel::embree::{EmbreeScene, SphereTests};
 use vmerge::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
 use vmerge::frame::Frame;
 use vmerge::sampling::{cosine_hemisphere, uniform_sphere, Rng, Stream};
@@ -192,13 +194,36 @@ fn same_hit(g: &Geometry, a: Option<Hit>, b: Option<Hit>) -> bool {
     }
 }
 
+/// Embree over the test geometry with its spheres tested each way: as an Embree geometry, and
+/// by vmerge beside Embree's triangles (the default for so few spheres).
+#[cfg(feature = "embree")]
+fn embree_scenes(g: &Geometry) -> Vec<(SphereTests, EmbreeScene)> {
+    assert_eq!(SphereTests::for_count(g.spheres.len()), SphereTests::Direct);
+    [SphereTests::Embree, SphereTests::Direct]
+        .map(|spheres| (spheres, EmbreeScene::build_with(g, "", spheres).unwrap()))
+        .into()
+}
+
 #[cfg(feature = "embree")]
 #[test]
 fn embree_and_bvh_agree_on_100k_rays() {
     let g = test_geometry();
     let bvh = accel::build(AccelKind::Bvh, &g).unwrap();
-    let embree = accel::build(AccelKind::Embree, &g).unwrap();
     let (rays, must_hit) = test_rays(&g, bvh.as_ref());
+    for (spheres, embree) in embree_scenes(&g) {
+        eprintln!("spheres tested by {spheres:?}");
+        embree_agrees_with_bvh(&g, &embree, bvh.as_ref(), &rays, &must_hit);
+    }
+}
+
+#[cfg(feature = "embree")]
+fn embree_agrees_with_bvh(
+    g: &Geometry,
+    embree: &dyn Accel,
+    bvh: &dyn Accel,
+    rays: &[Ray],
+    must_hit: &[bool],
+) {
     let mut mismatches = Vec::new();
     let mut embree_leaks = 0;
     for (i, ray) in rays.iter().enumerate() {
@@ -227,7 +252,7 @@ fn embree_and_bvh_agree_on_100k_rays() {
         if is_edge_aimed(i) && at_target(a) && at_target(b) {
             continue;
         }
-        if !same_hit(&g, a, b) || bvh.occluded(ray) != embree.occluded(ray) {
+        if !same_hit(g, a, b) || bvh.occluded(ray) != embree.occluded(ray) {
             mismatches.push((ray, a, b));
         }
     }
@@ -283,9 +308,10 @@ fn bvh_packets_equal_single_rays() {
 #[test]
 fn embree_packets_equal_single_rays() {
     let g = test_geometry();
-    let embree = accel::build(AccelKind::Embree, &g).unwrap();
-    let (rays, _) = test_rays(&g, embree.as_ref());
-    packets_match_single_rays(embree.as_ref(), &rays[..20_000]);
+    for (_, embree) in embree_scenes(&g) {
+        let (rays, _) = test_rays(&g, &embree);
+        packets_match_single_rays(&embree, &rays[..20_000]);
+    }
 }
 
 #[cfg(feature = "embree")]

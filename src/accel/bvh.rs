@@ -9,7 +9,7 @@
 //! Triangles use the watertight test of Woop, Benthin and Wald (2013), as pbrt-v4 does, so rays
 //! through shared edges and vertices never slip between two triangles.
 
-use super::{sphere_roots, Accel, AccelError, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
+use super::{Accel, AccelError, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
 use glam::{Vec3, Vec4};
 
 /// Axis-aligned box.
@@ -355,9 +355,7 @@ impl Bvh {
                 if current & HAS_SPHERES != 0 {
                     let [first, end] = self.leaf_spheres[index as usize];
                     for &i in &self.sphere_order[first as usize..end as usize] {
-                        let hit = sphere_roots(&self.spheres[i as usize], ray)
-                            .and_then(|r| r.into_iter().find(|&t| t >= ray.tmin && t <= tmax));
-                        if let Some(t) = hit {
+                        if let Some(t) = self.spheres[i as usize].first_hit(ray, tmax) {
                             best = Some((t, 0.0, 0.0, HitRef::Sphere(i)));
                             if any_hit {
                                 return best.map(|hit| self.hit(ray, hit));
@@ -398,13 +396,7 @@ impl Bvh {
                     ng: (b - a).cross(c - a),
                 }
             }
-            HitRef::Sphere(i) => Hit {
-                t,
-                primitive: Primitive::Sphere(i),
-                u: 0.0,
-                v: 0.0,
-                ng: (ray.at(t) - self.spheres[i as usize].center).normalize(),
-            },
+            HitRef::Sphere(i) => self.spheres[i as usize].hit(i, ray, t),
         }
     }
 }

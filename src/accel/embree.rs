@@ -2,8 +2,9 @@
 //!
 //! One device per scene with an error callback that records Embree's errors so they surface
 //! as [`AccelError`]s; the triangle soup as one triangle geometry over shared buffers, the
-//! spheres as one sphere-point geometry; MEDIUM build quality (shared/notes/embree.md: HIGH
-//! costs several times the build for ~13% faster traversal). Speaks Embree 3's and Embree 4's
+//! spheres as one sphere-point geometry, or, when there are only a few, tested by vmerge
+//! beside Embree's traversal ([`SphereTests`]); MEDIUM build quality (shared/notes/embree.md:
+//! HIGH costs several times the build for ~13% faster traversal). Speaks Embree 3's and 4's
 //! APIs (`cfg(embree3)` / `cfg(embree4)`, from the version embree-sys found): only the ray
 //! queries differ, in `query`; both versions are asked the same questions.
 
@@ -38,6 +39,32 @@ unsafe extern "C" fn record_error(
     }
 }
 
+/// Who tests a scene's spheres.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SphereTests {
+    /// Embree, as one sphere-point geometry beside the triangles.
+    Embree,
+    /// vmerge, every sphere for every ray, before Embree traces the triangles alone.
+    Direct,
+}
+
+impl SphereTests {
+    /// Up to this many spheres are tested directly. A second geometry type makes Embree
+    /// traverse a second acceleration structure for every ray, whether or not the ray comes
+    /// near a sphere: on SmallVCM's box of 20 triangles one tiny sphere that no ray hits made a
+    /// one-thread `pt` render 1.2x slower, where a direct test costs a few nanoseconds a sphere.
+    const DIRECT_MAX: usize = 4;
+
+    /// The faster way for `count` spheres.
+    pub fn for_count(count: usize) -> Self {
+        if count <= Self::DIRECT_MAX {
+            SphereTests::Direct
+        } else {
+            SphereTests::Embree
+        }
+    }
+}
+
 pub struct EmbreeScene {
     device: sys::RTCDevice,
     scene: sys::RTCScene,
@@ -46,7 +73,10 @@ pub struct EmbreeScene {
     _vertices: Vec<[f32; 4]>,
     _indices: Vec<[u32; 3]>,
     _spheres: Vec<[f32; 4]>,
+    /// The spheres Embree holds, to make their hits exact; empty when vmerge tests them.
     spheres: Vec<Sphere>,
+    /// The spheres vmerge tests itself ([`SphereTests::Direct`]); empty when Embree holds them.
+    direct_spheres: Vec<Sphere>,
     triangle_geometry: u32,
     sphere_geometry: u32,
 }
@@ -65,6 +95,16 @@ impl EmbreeScene {
 
     /// Builds with an Embree device configuration string (e.g. `"threads=1,verbose=1"`).
     pub fn build_with_config(geometry: &Geometry, config: &str) -> Result<Self, AccelError> {
+        let spheres = SphereTests::for_count(geometry.spheres.len());
+        Self::build_with(geometry, config, spheres)
+    }
+
+    /// Builds with a device configuration string and the spheres tested as `spheres` says.
+    pub fn build_with(
+        geometry: &Geometry,
+        config: &str,
+        spheres: SphereTests,
+    ) -> Result<Self, AccelError> {
         check_indices(geometry)?;
         let errors = Box::<ErrorLog>::default();
         let config = std::ffi::CString::new(config).map_err(|_| AccelError::Embree {
@@ -92,6 +132,10 @@ impl EmbreeScene {
         };
         // SAFETY: `device` is valid.
         let scene = unsafe { sys::rtcNewScene(device) };
+        let (embree_spheres, direct_spheres) = match spheres {
+            SphereTests::Embree => (geometry.spheres.clone(), Vec::new()),
+            SphereTests::Direct => (Vec::new(), geometry.spheres.clone()),
+        };
         let mut this = EmbreeScene {
             device,
             scene,
@@ -102,12 +146,12 @@ impl EmbreeScene {
                 .map(|p| [p.x, p.y, p.z, 0.0])
                 .collect(),
             _indices: geometry.triangles.clone(),
-            _spheres: geometry
-                .spheres
+            _spheres: embree_spheres
                 .iter()
                 .map(|s| [s.center.x, s.center.y, s.center.z, s.radius])
                 .collect(),
-            spheres: geometry.spheres.clone(),
+            spheres: embree_spheres,
+            direct_spheres,
             triangle_geometry: sys::RTC_INVALID_GEOMETRY_ID,
             sphere_geometry: sys::RTC_INVALID_GEOMETRY_ID,
         };
@@ -239,6 +283,28 @@ impl EmbreeScene {
         }
     }
 
+    /// The nearest of the directly tested spheres `ray` meets, as its index and `t`.
+    #[inline]
+    fn nearest_direct_sphere(&self, ray: &Ray) -> Option<(u32, f32)> {
+        let mut nearest = None;
+        let mut tmax = ray.tmax;
+        for (i, sphere) in self.direct_spheres.iter().enumerate() {
+            if let Some(t) = sphere.first_hit(ray, tmax) {
+                nearest = Some((i as u32, t));
+                tmax = t;
+            }
+        }
+        nearest
+    }
+
+    /// Whether `ray` meets any of the directly tested spheres.
+    #[inline]
+    fn direct_spheres_occlude(&self, ray: &Ray) -> bool {
+        self.direct_spheres
+            .iter()
+            .any(|sphere| sphere.first_hit(ray, ray.tmax).is_some())
+    }
+
     #[inline(never)]
     fn sphere_hit(&self, prim_id: u32, t: f32, ray: &Ray) -> Hit {
         // Embree's single-ray and packet sphere tests round differently; the exact root
@@ -251,14 +317,7 @@ impl EmbreeScene {
                 t1
             }
         });
-        let ng = (ray.at(t) - sphere.center).normalize();
-        Hit {
-            t,
-            primitive: Primitive::Sphere(prim_id),
-            u: 0.0,
-            v: 0.0,
-            ng,
-        }
+        sphere.hit(prim_id, ray, t)
     }
 }
 
@@ -633,15 +692,19 @@ fn ensure_flush_denormals() {
 impl Accel for EmbreeScene {
     fn intersect(&self, ray: &Ray) -> Option<Hit> {
         ensure_flush_denormals();
+        let sphere = self.nearest_direct_sphere(ray);
         let mut rayhit = sys::RTCRayHit {
             ray: rtc_ray(ray),
             hit: empty_hit(),
         };
+        if let Some((_, t)) = sphere {
+            rayhit.ray.tfar = t;
+        }
         // SAFETY: the scene is committed.
         unsafe { query::intersect1(self.scene, &mut rayhit) };
         let h = &rayhit.hit;
         if h.geomID == sys::RTC_INVALID_GEOMETRY_ID {
-            return None;
+            return sphere.map(|(i, t)| self.direct_spheres[i as usize].hit(i, ray, t));
         }
         self.hit(
             RawHit {
@@ -658,6 +721,9 @@ impl Accel for EmbreeScene {
 
     fn occluded(&self, ray: &Ray) -> bool {
         ensure_flush_denormals();
+        if self.direct_spheres_occlude(ray) {
+            return true;
+        }
         let mut r = rtc_ray(ray);
         // SAFETY: the scene is committed.
         unsafe { query::occluded1(self.scene, &mut r) };
@@ -672,11 +738,28 @@ impl Accel for EmbreeScene {
             ray: ray8,
             hit: empty_hit8(),
         };
+        let mut spheres = [None; PACKET];
+        if !self.direct_spheres.is_empty() {
+            for (i, (ray, sphere)) in rays.iter().zip(&mut spheres).enumerate() {
+                if active & (1 << i) != 0 {
+                    *sphere = self.nearest_direct_sphere(ray);
+                    if let Some((_, t)) = *sphere {
+                        rayhit.ray.tfar[i] = t;
+                    }
+                }
+            }
+        }
         // SAFETY: the scene is committed.
         unsafe { query::intersect8(&valid, self.scene, &mut rayhit) };
         for (i, (ray, out)) in rays.iter().zip(hits.iter_mut()).enumerate() {
             let h = &rayhit.hit;
-            *out = if active & (1 << i) != 0 && h.geomID[i] != sys::RTC_INVALID_GEOMETRY_ID {
+            if active & (1 << i) == 0 {
+                *out = None;
+                continue;
+            }
+            *out = if h.geomID[i] == sys::RTC_INVALID_GEOMETRY_ID {
+                spheres[i].map(|(k, t)| self.direct_spheres[k as usize].hit(k, ray, t))
+            } else {
                 self.hit(
                     RawHit {
                         geom_id: h.geomID[i],
@@ -688,20 +771,26 @@ impl Accel for EmbreeScene {
                     },
                     ray,
                 )
-            } else {
-                None
             };
         }
     }
 
     fn occluded8(&self, rays: &[Ray; PACKET], active: u8) -> u8 {
         ensure_flush_denormals();
-        let (valid, mut ray8) = packet_rays(rays, active);
+        // Lanes a sphere already blocks leave the packet before Embree sees it.
+        let by_spheres = (0..PACKET)
+            .filter(|&i| active & (1 << i) != 0 && self.direct_spheres_occlude(&rays[i]))
+            .fold(0u8, |mask, i| mask | (1 << i));
+        let rest = active & !by_spheres;
+        if rest == 0 {
+            return by_spheres;
+        }
+        let (valid, mut ray8) = packet_rays(rays, rest);
         // SAFETY: the scene is committed.
         unsafe { query::occluded8(&valid, self.scene, &mut ray8) };
         (0..PACKET)
-            .filter(|&i| active & (1 << i) != 0 && ray8.tfar[i] == f32::NEG_INFINITY)
-            .fold(0u8, |mask, i| mask | (1 << i))
+            .filter(|&i| rest & (1 << i) != 0 && ray8.tfar[i] == f32::NEG_INFINITY)
+            .fold(by_spheres, |mask, i| mask | (1 << i))
     }
 
     fn name(&self) -> &'static str {

@@ -174,6 +174,27 @@ pub(crate) fn sphere_roots(s: &Sphere, ray: &Ray) -> Option<[f32; 2]> {
     Some([t0 as f32, t1 as f32])
 }
 
+impl Sphere {
+    /// The nearest `t` in `[ray.tmin, tmax]` where `ray` meets the sphere. Every sphere test
+    /// (the BVH's leaves, the spheres Embree leaves to vmerge) decides through this one function.
+    #[inline]
+    pub(crate) fn first_hit(&self, ray: &Ray, tmax: f32) -> Option<f32> {
+        sphere_roots(self, ray).and_then(|r| r.into_iter().find(|&t| t >= ray.tmin && t <= tmax))
+    }
+
+    /// The [`Hit`] of `ray` on this sphere, number `index` of the geometry, at `t`.
+    #[inline]
+    pub(crate) fn hit(&self, index: u32, ray: &Ray, t: f32) -> Hit {
+        Hit {
+            t,
+            primitive: Primitive::Sphere(index),
+            u: 0.0,
+            v: 0.0,
+            ng: (ray.at(t) - self.center).normalize(),
+        }
+    }
+}
+
 /// Packet width of the 8-ray queries.
 pub const PACKET: usize = 8;
 
