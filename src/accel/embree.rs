@@ -53,6 +53,8 @@ impl SphereTests {
     /// traverse a second acceleration structure for every ray, whether or not the ray comes
     /// near a sphere: on SmallVCM's box of 20 triangles one tiny sphere that no ray hits made a
     /// one-thread `pt` render 1.2x slower, where a direct test costs a few nanoseconds a sphere.
+    /// Direct against Embree's spheres, that box with n mirror spheres, one-thread `pt`: 0.82-0.90
+    /// of the time at n = 4, 0.95-1.01 at 8, 1.03-1.06 at 16, 1.29-1.31 at 32.
     const DIRECT_MAX: usize = 4;
 
     /// The faster way for `count` spheres.
