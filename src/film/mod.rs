@@ -9,11 +9,13 @@ pub mod exr;
 pub mod metadata;
 pub mod png;
 mod reference;
+mod splat;
 
 pub use atomic::{atomic_write, remove_stale_temporaries};
 pub use exr::{FilmError, Image};
 pub use metadata::{ErrorSample, Metadata, MetadataError, TraceWindow};
 pub use reference::{errors_in, ErrorTracker};
+pub use splat::{add_splats, Splats};
 
 /// Sum of all iterations' per-pixel estimates, in f64 so that long renders do not lose
 /// precision; the image is `sum / iterations`.

@@ -11,8 +11,9 @@
 //! ([`BptVertex`]), updated in O(1) per vertex, so each weight costs O(1).
 //! Paths of one segment (the camera sees a light) are only found by s = 0 and take weight 1.
 //!
-//! Light-tracing splats of a fixed chunk of pixels are collected and added in chunk order, so
-//! the image does not depend on the thread count. Each chunk's buffers (its splats, its light
+//! Light-tracing splats of a fixed chunk of pixels are collected and added in chunk order (on
+//! all threads, a band of pixels each: `film::add_splats`), so the image does not depend on the
+//! thread count. Each chunk's buffers (its splats, its light
 //! sub-path) are kept from one iteration to the next: the steady state allocates nothing.
 
 use super::connection::{Connection, LightSample};
@@ -21,7 +22,7 @@ use super::{Integrator, IterationStats, RenderContext};
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
-use crate::film::add_sample;
+use crate::film::{add_sample, add_splats, Splats};
 use crate::light::Aim;
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
@@ -38,7 +39,7 @@ const BPT_AIM: Aim = Aim::Disc;
 /// sub-path of the pixel it is tracing.
 #[derive(Default)]
 struct Chunk<'a> {
-    splats: Vec<(usize, Rgb)>,
+    splats: Splats,
     stats: IterationStats,
     light_path: Vec<LightVertex<'a>>,
 }
@@ -206,7 +207,7 @@ impl<'a> Bpt<'a> {
         &self,
         sampler: &mut Sampler,
         vertices: &mut Vec<LightVertex<'a>>,
-        splats: &mut Vec<(usize, Rgb)>,
+        splats: &mut Splats,
         stats: &mut IterationStats,
     ) {
         vertices.clear();
@@ -279,7 +280,7 @@ impl<'a> Bpt<'a> {
     fn connect_to_camera(
         &self,
         lv: &LightVertex,
-        splats: &mut Vec<(usize, Rgb)>,
+        splats: &mut Splats,
         stats: &mut IterationStats,
     ) {
         let (camera, bsdf) = (&self.ctx.camera, &lv.bsdf);
@@ -311,7 +312,7 @@ impl<'a> Bpt<'a> {
             return;
         }
         let value = lv.throughput * eval.f * (weight * camera_pdf_a / self.light_paths);
-        splats.push((camera.pixel_index(x, y), value));
+        splats.push(camera.pixel_index(x, y), value);
     }
 
     /// s = 0: emission reached by the eye sub-path `state` at `hit` (the sky when `None`).
@@ -499,10 +500,8 @@ impl Integrator for Bpt<'_> {
         let mut stats = IterationStats::default();
         for chunk in &chunks {
             stats = stats + chunk.stats;
-            for &(pixel, value) in &chunk.splats {
-                add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
-            }
         }
+        stats.dropped_samples += add_splats(frame, &mut chunks, |chunk| &mut chunk.splats);
         self.chunks = chunks;
         stats
     }

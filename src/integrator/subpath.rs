@@ -8,7 +8,7 @@ use super::IterationStats;
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, Normals, TransportMode};
 use crate::color::Rgb;
-use crate::film::add_sample;
+use crate::film::{add_splats, Splats};
 use crate::scene::{Scene, SurfaceHit};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -128,7 +128,7 @@ pub struct EyeVertex<'b> {
 pub struct LightChunk {
     pub vertices: Vec<LightVertex>,
     pub ends: Vec<u32>,
-    pub splats: Vec<(usize, Rgb)>,
+    pub splats: Splats,
     pub stats: IterationStats,
 }
 
@@ -154,20 +154,24 @@ impl LightPaths {
     /// Replaces the paths by the chunks' in order (so the result does not depend on the
     /// threads), adding their camera splats to `frame` and their counters to `stats`. The
     /// storage is kept from one iteration to the next.
-    pub fn refill(&mut self, chunks: &[LightChunk], frame: &mut [Rgb], stats: &mut IterationStats) {
+    pub fn refill(
+        &mut self,
+        chunks: &mut [LightChunk],
+        frame: &mut [Rgb],
+        stats: &mut IterationStats,
+    ) {
+        stats.dropped_samples += add_splats(frame, chunks, |chunk| &mut chunk.splats);
         self.path_ends.clear();
         self.path_ends.push(0);
         let mut total = 0;
-        for chunk in chunks {
+        for chunk in &*chunks {
             self.path_ends
                 .extend(chunk.ends.iter().map(|&e| total + e as usize));
             total += chunk.vertices.len();
-            for &(pixel, value) in &chunk.splats {
-                add_sample(&mut frame[pixel], value, &mut stats.dropped_samples);
-            }
             stats.rays += chunk.stats.rays;
             stats.dropped_samples += chunk.stats.dropped_samples;
         }
+        let chunks = &*chunks;
         // The copy runs on every thread, into storage of last iteration's length resized
         // (the filler is overwritten): a serial copy would hold up the other threads. Growth
         // is filled on every thread too: the first iteration's pages are tens of megabytes.

@@ -494,7 +494,7 @@ impl<'a> VertexCm<'a> {
             .scene()
             .occluded(&Ray::spawn_to(hit.position, hit.ng, camera.position))
         {
-            chunk.splats.push((camera.pixel_index(x, y), contribution));
+            chunk.splats.push(camera.pixel_index(x, y), contribution);
         }
     }
 
