@@ -277,12 +277,7 @@ impl<'a> Bpt<'a> {
     }
 
     /// t = 1: the light vertex seen by the camera, splatted to its pixel.
-    fn connect_to_camera(
-        &self,
-        lv: &LightVertex,
-        splats: &mut Splats,
-        stats: &mut IterationStats,
-    ) {
+    fn connect_to_camera(&self, lv: &LightVertex, splats: &mut Splats, stats: &mut IterationStats) {
         let (camera, bsdf) = (&self.ctx.camera, &lv.bsdf);
         let Some((x, y)) = camera.raster(lv.position) else {
             return;
