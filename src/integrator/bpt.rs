@@ -13,8 +13,8 @@
 //!
 //! Light-tracing splats of a fixed chunk of pixels are collected and added in chunk order (on
 //! all threads, a band of pixels each: `film::add_splats`), so the image does not depend on the
-//! thread count. Each chunk's buffers (its splats, its light
-//! sub-path) are kept from one iteration to the next: the steady state allocates nothing.
+//! thread count. Each chunk's buffers (its splats, its light sub-path) are kept from one
+//! iteration to the next: the steady state allocates nothing.
 
 use super::connection::{Connection, LightSample};
 use super::mis::{self, BptStep, BptVertex, Power};
