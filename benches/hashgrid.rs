@@ -33,7 +33,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 use vmerge::accel::{AccelKind, Ray};
 use vmerge::bsdf::TransportMode;
-use vmerge::hashgrid::{CellRuns, HashGrid};
+use vmerge::hashgrid::{CellRuns, GroupedPoints, HashGrid};
 use vmerge::light::Aim;
 use vmerge::sampling::{uniform_triangle, Distribution1D, Rng};
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
@@ -57,8 +57,9 @@ const LIGHT_RESOLUTION: u32 = 512;
 /// of the cell coordinates, as many slots as points (no comparison sort, no key compare:
 /// cells that share a slot share its range, and the distance test rejects the strangers); a
 /// query visits the 2 x 2 x 2 cells nearest to it. Two changes make it comparable: the points
-/// are copied into slot order, one array per axis, and scanned by the grid's vectorised
-/// distance test (SmallVCM reads them through their indices, one at a time); cells are those
+/// are copied into slot order in the grid's own point store, four to a cache line, and scanned
+/// by its vectorised distance test (SmallVCM reads them through their indices, one at a
+/// time); cells are those
 /// of the world grid, not of the points' bounding box, so no query outside the box is
 /// skipped; and a slot two of a query's cells share is scanned once, so results are exact.
 #[derive(Default)]
@@ -68,10 +69,7 @@ struct FlatGrid {
     /// Per slot the end of its range (its start is the previous slot's end); counts and
     /// then starts while building.
     ends: Vec<u32>,
-    xs: Vec<f32>,
-    ys: Vec<f32>,
-    zs: Vec<f32>,
-    indices: Vec<u32>,
+    points: GroupedPoints,
 }
 
 impl FlatGrid {
@@ -89,16 +87,12 @@ impl FlatGrid {
         for count in &mut self.ends {
             (*count, sum) = (sum, sum + *count);
         }
-        self.xs.resize(n, 0.0);
-        self.ys.resize(n, 0.0);
-        self.zs.resize(n, 0.0);
-        self.indices.resize(n, 0);
+        self.points.reset(n);
         for (i, &p) in points.iter().enumerate() {
             let slot = self.slot(self.cell(p));
             let at = self.ends[slot] as usize;
             self.ends[slot] += 1;
-            (self.xs[at], self.ys[at], self.zs[at]) = (p.x, p.y, p.z);
-            self.indices[at] = i as u32;
+            self.points.set(at, p, i as u32);
         }
     }
 
@@ -140,53 +134,13 @@ impl FlatGrid {
                 continue;
             }
             let begin = if slot == 0 { 0 } else { self.ends[slot - 1] };
-            scan(
-                [&self.xs, &self.ys, &self.zs],
-                &self.indices,
+            let points = &self.points;
+            points.scan(
                 begin as usize..self.ends[slot] as usize,
                 q,
                 self.radius_sq,
-                &mut visit,
+                &mut |slot, d2| visit(points.index_of(slot) as usize, d2),
             );
-        }
-    }
-}
-
-/// The grid's distance test (src/hashgrid.rs): a block of squared distances at a time into a
-/// bit mask of the points inside.
-#[inline]
-fn scan(
-    [xs, ys, zs]: [&[f32]; 3],
-    indices: &[u32],
-    range: std::ops::Range<usize>,
-    q: Vec3,
-    radius_sq: f32,
-    visit: &mut impl FnMut(usize, f32),
-) {
-    const BLOCK: usize = 64;
-    let xs = &xs[range.clone()];
-    let ys = &ys[range.clone()];
-    let zs = &zs[range.clone()];
-    let indices = &indices[range];
-    for (((xs, ys), zs), indices) in xs
-        .chunks(BLOCK)
-        .zip(ys.chunks(BLOCK))
-        .zip(zs.chunks(BLOCK))
-        .zip(indices.chunks(BLOCK))
-    {
-        let mut d2 = [0.0f32; BLOCK];
-        for (((d2, &x), &y), &z) in d2.iter_mut().zip(xs).zip(ys).zip(zs) {
-            let (dx, dy, dz) = (x - q.x, y - q.y, z - q.z);
-            *d2 = dx * dx + dy * dy + dz * dz;
-        }
-        let mut inside = 0u64;
-        for (j, &d2) in d2.iter().enumerate().take(xs.len()) {
-            inside |= u64::from(d2 <= radius_sq) << j;
-        }
-        while inside != 0 {
-            let j = inside.trailing_zeros() as usize;
-            inside &= inside - 1;
-            visit(indices[j] as usize, d2[j]);
         }
     }
 }

@@ -16,7 +16,7 @@
 //! The cells are those of the world grid (floor(p / side)), whatever the points' extent, so the
 //! order of query results depends only on the points, never on threads.
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
 
@@ -93,6 +93,122 @@ impl Slot {
     }
 }
 
+/// Points in one [`Group`].
+const GROUP: usize = 4;
+const _: () = assert!(CHUNK.is_multiple_of(GROUP));
+
+/// Four consecutive points of the grid's order: their coordinates per axis, so the four are
+/// tested at once in SIMD lanes, and their indices in the input. One cache line: the one or
+/// two points of a range on a sparse set come in one fetch, not one per axis.
+#[derive(Clone, Copy)]
+#[repr(C, align(64))]
+struct Group {
+    x: [f32; GROUP],
+    y: [f32; GROUP],
+    z: [f32; GROUP],
+    index: [u32; GROUP],
+}
+
+impl Group {
+    /// No point: a NaN coordinate is inside no sphere.
+    const EMPTY: Group = Group {
+        x: [f32::NAN; GROUP],
+        y: [f32::NAN; GROUP],
+        z: [f32::NAN; GROUP],
+        index: [u32::MAX; GROUP],
+    };
+}
+
+/// Points in an order of their own (slots), four to a cache line: what a grid's ranges of
+/// slots are scanned in.
+#[derive(Default)]
+pub struct GroupedPoints {
+    groups: Vec<Group>,
+    len: usize,
+}
+
+impl GroupedPoints {
+    pub fn clear(&mut self) {
+        self.reset(0);
+    }
+
+    /// `len` slots, none holding a point yet.
+    pub fn reset(&mut self, len: usize) {
+        self.groups.clear();
+        self.groups.resize(len.div_ceil(GROUP), Group::EMPTY);
+        self.len = len;
+    }
+
+    /// Puts point `p`, the input's `index`, in `slot`.
+    pub fn set(&mut self, slot: usize, p: Vec3, index: u32) {
+        let (group, lane) = (&mut self.groups[slot / GROUP], slot % GROUP);
+        (group.x[lane], group.y[lane], group.z[lane]) = (p.x, p.y, p.z);
+        group.index[lane] = index;
+    }
+
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The input's index of the point in `slot`.
+    #[inline]
+    pub fn index_of(&self, slot: usize) -> u32 {
+        self.groups[slot / GROUP].index[slot % GROUP]
+    }
+
+    /// Calls `visit(slot, distance_squared)` for the points of the slots `range` within
+    /// distance sqrt(`radius_sq`) of `q`, in slot order. Sixteen groups (64 points) at a time,
+    /// four points to a SIMD operation, into a bit mask of the points inside, so no branch
+    /// depends on whether one point is inside: with spheres half full it would mispredict half
+    /// the time.
+    #[inline]
+    pub fn scan(
+        &self,
+        range: std::ops::Range<usize>,
+        q: Vec3,
+        radius_sq: f32,
+        visit: &mut impl FnMut(usize, f32),
+    ) {
+        // Groups whose inside bits fill a u64.
+        const BLOCK: usize = u64::BITS as usize / GROUP;
+        if range.is_empty() {
+            return;
+        }
+        let first = range.start / GROUP;
+        let groups = &self.groups[first..(range.end - 1) / GROUP + 1];
+        let (qx, qy, qz) = (Vec4::splat(q.x), Vec4::splat(q.y), Vec4::splat(q.z));
+        let radius_sq = Vec4::splat(radius_sq);
+        for (block, groups) in groups.chunks(BLOCK).enumerate() {
+            let base = (first + block * BLOCK) * GROUP;
+            let mut d2 = [Vec4::ZERO; BLOCK];
+            let mut inside = 0u64;
+            for (j, (group, d2)) in groups.iter().zip(&mut d2).enumerate() {
+                let (dx, dy, dz) = (
+                    Vec4::from_array(group.x) - qx,
+                    Vec4::from_array(group.y) - qy,
+                    Vec4::from_array(group.z) - qz,
+                );
+                *d2 = dx * dx + dy * dy + dz * dz;
+                inside |= u64::from(d2.cmple(radius_sq).bitmask()) << (GROUP * j);
+            }
+            // Only the range's points: from its start in the first group to its end in the
+            // last.
+            let from = range.start.saturating_sub(base);
+            let to = (range.end - base).min(u64::BITS as usize);
+            inside &= (u64::MAX >> (u64::BITS as usize - to)) & (u64::MAX << from);
+            while inside != 0 {
+                let lane = inside.trailing_zeros() as usize;
+                inside &= inside - 1;
+                visit(base + lane, d2[lane / GROUP][lane % GROUP]);
+            }
+        }
+    }
+}
+
 /// A grid over no points; [`HashGrid::rebuild`] fills it.
 #[derive(Default)]
 pub struct HashGrid {
@@ -112,12 +228,8 @@ pub struct HashGrid {
     /// Key steps of one cell along y and z (x's is 1).
     stride_y: u64,
     stride_z: u64,
-    /// Point coordinates in cell order, one array per axis so a range streams through
-    /// distance tests in SIMD lanes, and the points' indices in the input.
-    xs: Vec<f32>,
-    ys: Vec<f32>,
-    zs: Vec<f32>,
-    indices: Vec<u32>,
+    /// The points in cell order.
+    points: GroupedPoints,
     /// Key of a run's first cell -> range of the run's points; linear probing, a power of
     /// two long.
     table: Vec<Slot>,
@@ -217,10 +329,7 @@ impl HashGrid {
             "fewer than u32::MAX points"
         );
         self.set_cells(radius, runs);
-        self.xs.clear();
-        self.ys.clear();
-        self.zs.clear();
-        self.indices.clear();
+        self.points.clear();
         self.cells.clear();
         if points.is_empty() {
             return;
@@ -242,18 +351,27 @@ impl HashGrid {
     }
 
     pub fn len(&self) -> usize {
-        self.indices.len()
+        self.points.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.indices.is_empty()
+        self.points.is_empty()
     }
 
-    /// The grid's order: for each slot, the index of its point in the `points` the grid was
-    /// built from. Data a query's caller reads per point, laid out in this order and read by
-    /// [`Self::query_slots`], streams through the cache instead of being fetched at random.
-    pub fn indices(&self) -> &[u32] {
-        &self.indices
+    /// The index in the `points` the grid was built from of the point in `slot` (slots run
+    /// in the grid's order, 0 .. [`Self::len`]).
+    #[inline]
+    pub fn index_of(&self, slot: usize) -> u32 {
+        self.points.index_of(slot)
+    }
+
+    /// [`Self::index_of`] of every slot, in order. Data a query's caller reads per point, laid
+    /// out in this order and read by [`Self::query_slots`], streams through the cache instead
+    /// of being fetched at random.
+    pub fn indices(&self) -> impl IndexedParallelIterator<Item = u32> + '_ {
+        (0..self.len())
+            .into_par_iter()
+            .map(|slot| self.index_of(slot))
     }
 
     /// Calls `visit(index, distance_squared)` for every point within the radius of `q`
@@ -261,7 +379,7 @@ impl HashGrid {
     /// order of rows (z, y), then cells along x, then indices: an order of the results alone.
     #[inline]
     pub fn query(&self, q: Vec3, mut visit: impl FnMut(usize, f32)) {
-        self.query_slots(q, |slot, d2| visit(self.indices[slot] as usize, d2));
+        self.query_slots(q, |slot, d2| visit(self.index_of(slot) as usize, d2));
     }
 
     /// [`Self::query_slots`] a batch at a time: the slots of up to [`QUERY_BATCH`] points found,
@@ -293,13 +411,13 @@ impl HashGrid {
         self.query_slot_batches(q, |slots| {
             let mut indices = [0u32; QUERY_BATCH];
             for (index, &slot) in indices.iter_mut().zip(slots) {
-                *index = self.indices[slot as usize];
+                *index = self.index_of(slot as usize);
             }
             visit(&indices[..slots.len()]);
         });
     }
 
-    /// [`Self::query`] that names each point by its slot in [`Self::indices`], in the same
+    /// [`Self::query`] that names each point by its slot (see [`Self::index_of`]), in the same
     /// order.
     #[inline]
     pub fn query_slots(&self, q: Vec3, mut visit: impl FnMut(usize, f32)) {
@@ -451,26 +569,22 @@ impl HashGrid {
         let key = |i: usize| records[i].item.key();
         let is_end = |i: usize| i + 1 == n || key(i) != key(i + 1);
         let chunks = n.div_ceil(CHUNK);
-        self.xs.resize(n, 0.0);
-        self.ys.resize(n, 0.0);
-        self.zs.resize(n, 0.0);
-        self.indices.resize(n, 0);
+        self.points.reset(n);
         let ends_per_chunk = &mut self.histograms;
         ends_per_chunk.clear();
         ends_per_chunk.resize(chunks, 0);
         records
             .par_chunks(CHUNK)
-            .zip(self.xs.par_chunks_mut(CHUNK))
-            .zip(self.ys.par_chunks_mut(CHUNK))
-            .zip(self.zs.par_chunks_mut(CHUNK))
-            .zip(self.indices.par_chunks_mut(CHUNK))
+            .zip(self.points.groups.par_chunks_mut(CHUNK / GROUP))
             .zip(ends_per_chunk.par_iter_mut())
             .enumerate()
-            .for_each(|(chunk, (((((part, xs), ys), zs), indices), ends))| {
+            .for_each(|(chunk, ((part, groups), ends))| {
                 let start = chunk * CHUNK;
                 for (i, record) in part.iter().enumerate() {
+                    let (group, lane) = (&mut groups[i / GROUP], i % GROUP);
                     let [x, y, z] = record.position;
-                    (xs[i], ys[i], zs[i], indices[i]) = (x, y, z, record.item.index());
+                    (group.x[lane], group.y[lane], group.z[lane]) = (x, y, z);
+                    group.index[lane] = record.item.index();
                     *ends += u32::from(is_end(start + i));
                 }
             });
@@ -590,38 +704,9 @@ impl HashGrid {
             });
     }
 
-    /// Tests a range of points against the query sphere. Distances are computed a block at a
-    /// time (vectorised) into a bit mask of the points inside, so no branch depends on whether
-    /// one point is inside: with spheres half full it would mispredict half the time.
     #[inline]
     fn scan(&self, range: std::ops::Range<usize>, q: Vec3, visit: &mut impl FnMut(usize, f32)) {
-        // One bit per point of a block in a u64.
-        const BLOCK: usize = 64;
-        let xs = &self.xs[range.clone()];
-        let ys = &self.ys[range.clone()];
-        let zs = &self.zs[range.clone()];
-        for (block, ((xs, ys), zs)) in xs
-            .chunks(BLOCK)
-            .zip(ys.chunks(BLOCK))
-            .zip(zs.chunks(BLOCK))
-            .enumerate()
-        {
-            let first = range.start + block * BLOCK;
-            let mut d2 = [0.0f32; BLOCK];
-            for (((d2, &x), &y), &z) in d2.iter_mut().zip(xs).zip(ys).zip(zs) {
-                let (dx, dy, dz) = (x - q.x, y - q.y, z - q.z);
-                *d2 = dx * dx + dy * dy + dz * dz;
-            }
-            let mut inside = 0u64;
-            for (j, &d2) in d2.iter().enumerate().take(xs.len()) {
-                inside |= u64::from(d2 <= self.radius_sq) << j;
-            }
-            while inside != 0 {
-                let j = inside.trailing_zeros() as usize;
-                inside &= inside - 1;
-                visit(first + j, d2[j]);
-            }
-        }
+        self.points.scan(range, q, self.radius_sq, visit);
     }
 }
 
@@ -1100,6 +1185,33 @@ mod tests {
             assert!(row.len() > 1);
             assert!(row.windows(2).all(|w| key(w[0]) < key(w[1])), "{runs:?}");
         }
+    }
+
+    /// A scan visits exactly the slots of its range that lie inside, in order, wherever the
+    /// range starts and ends within a group of four and however many blocks of 64 it spans.
+    #[test]
+    fn scans_every_range_of_slots() {
+        let n = 141;
+        let mut points = GroupedPoints::default();
+        points.reset(n);
+        // Even slots at distance 0.5 from the query, odd ones at 2.
+        let at = |slot: usize| Vec3::new(if slot % 2 == 0 { 0.5 } else { 2.0 }, 0.0, 0.0);
+        for slot in 0..n {
+            points.set(slot, at(slot), 100 + slot as u32);
+        }
+        for start in 0..=n {
+            for end in start..=n {
+                let mut seen = Vec::new();
+                points.scan(start..end, Vec3::ZERO, 1.0, &mut |slot, d2| {
+                    assert_eq!(d2, at(slot).length_squared());
+                    seen.push(slot);
+                });
+                let expected: Vec<usize> = (start..end).filter(|s| s % 2 == 0).collect();
+                assert_eq!(seen, expected, "range {start}..{end}");
+            }
+        }
+        assert_eq!(points.len(), n);
+        assert_eq!(points.index_of(140), 240);
     }
 
     #[test]

@@ -824,8 +824,7 @@ impl Integrator for VertexCm<'_> {
             let vertices = &light.vertices;
             merge_vertices.par_extend(
                 grid.indices()
-                    .par_iter()
-                    .map(|&i| MergeVertex::from(&vertices[i as usize])),
+                    .map(|i| MergeVertex::from(&vertices[i as usize])),
             );
         }
         // Eye pass: one sub-path per pixel, each connecting to its own light sub-path.
