@@ -1195,7 +1195,7 @@ mod tests {
         let mut points = GroupedPoints::default();
         points.reset(n);
         // Even slots at distance 0.5 from the query, odd ones at 2.
-        let at = |slot: usize| Vec3::new(if slot % 2 == 0 { 0.5 } else { 2.0 }, 0.0, 0.0);
+        let at = |slot: usize| Vec3::new(if slot.is_multiple_of(2) { 0.5 } else { 2.0 }, 0.0, 0.0);
         for slot in 0..n {
             points.set(slot, at(slot), 100 + slot as u32);
         }
@@ -1206,7 +1206,7 @@ mod tests {
                     assert_eq!(d2, at(slot).length_squared());
                     seen.push(slot);
                 });
-                let expected: Vec<usize> = (start..end).filter(|s| s % 2 == 0).collect();
+                let expected: Vec<usize> = (start..end).filter(|s| s.is_multiple_of(2)).collect();
                 assert_eq!(seen, expected, "range {start}..{end}");
             }
         }
