@@ -21,8 +21,8 @@ pub struct LightSample<'s> {
 }
 
 impl<'s> LightSample<'s> {
-    /// Draws the pick and the point (always three numbers, so the streams of every technique
-    /// stay aligned) and returns the sample when it can contribute; `aim` is where the
+    /// Draws the pick and the point (always one choice and a 2D point, so the streams of every
+    /// technique stay aligned) and returns the sample when it can contribute; `aim` is where the
     /// technique's light sub-paths of infinite lights start (for `emission_pdf_w`).
     pub fn draw(
         scene: &'s Scene,
@@ -31,8 +31,7 @@ impl<'s> LightSample<'s> {
         sampler: &mut Sampler,
         aim: Aim,
     ) -> Option<Self> {
-        let u_pick = sampler.next_f32();
-        let u = sampler.next_2d();
+        let [u_pick, u @ ..] = sampler.next_choice_2d();
         let (index, pick) = scene.lights.pick(u_pick)?;
         let light = scene.lights.get(index);
         let il = light.illuminate(hit.position, u, aim)?;

@@ -92,18 +92,23 @@ impl Sampler {
         }
     }
 
-    /// A choice (`[0]`, such as a BSDF's lobe) and a 2D point (`[1]`, `[2]`), as
-    /// a BSDF sample takes them.
+    /// A choice (`[0]`, such as a BSDF's lobe or a light) and a 2D point (`[1]`, `[2]`), as
+    /// a BSDF sample or a light sample takes them.
     #[inline]
     pub fn next_choice_2d(&mut self) -> [f32; 3] {
-        let choice = self.next_f32();
-        let [u, v] = self.next_2d();
-        [choice, u, v]
+        match self {
+            Sampler::Sobol(s) => s.next_choice_2d(),
+            Sampler::Independent(rng) => {
+                let choice = rng.next_f32();
+                let [u, v] = rng.next_2d();
+                [choice, u, v]
+            }
+        }
     }
 }
 
-/// Draws one vertex may make: a light pick and point, a BSDF lobe and direction, Russian
-/// roulette (5), with room to spare.
+/// Slots of draws one vertex may make: a light pick with its point, a BSDF lobe with its
+/// direction, Russian roulette (3), with room to spare.
 const DIMENSIONS_PER_VERTEX: u64 = 8;
 
 /// One sample of a Sobol sequence: its index and the key that seeds its dimensions.
@@ -163,6 +168,22 @@ impl SobolSample {
         ]
     }
 
+    /// Dimensions 0-2 of one shuffled Sobol' point, the 2D point on dimensions 0 and 1 (as
+    /// [`Self::next_2d`] has it: a (0, 2)-net for every power-of-two run) and the choice on
+    /// dimension 2, stratified on its own and jointly with the point (a (1, m, 3)-net). One
+    /// slot: a hash and a shuffle fewer than a 1D and a 2D draw.
+    #[inline]
+    fn next_choice_2d(&mut self) -> [f32; 3] {
+        let h = self.next_slot();
+        let r = self.shuffled(h);
+        let [s0, s1] = scramble_seeds(h);
+        [
+            to_unit(scrambled(SobolDimension::Two, r, third_seed(h))),
+            to_unit(scrambled(SobolDimension::Zero, r, s0)),
+            to_unit(scrambled(SobolDimension::One, r, s1)),
+        ]
+    }
+
     /// Dimensions 0-3 of one shuffled Sobol' point: a (3, m, 4)-net for every power-of-two
     /// run, so the two 2D points are stratified jointly, not only each on its own. Two slots.
     #[inline]
@@ -186,6 +207,12 @@ fn scramble_seeds(h: u64) -> [u32; 2] {
         (h >> 32) as u32,
         (h.wrapping_mul(0xd1b5_4a32_d192_ed03) >> 32) as u32,
     ]
+}
+
+/// A third scramble seed from a slot's hash, for a slot's dimension 2.
+#[inline]
+fn third_seed(h: u64) -> u32 {
+    (h.wrapping_mul(0x94d0_49bb_1331_11eb) >> 32) as u32
 }
 
 /// The first four dimensions of Sobol'.
@@ -392,6 +419,44 @@ mod tests {
                     assert!(counts.iter().all(|&c| c == 8), "shape {a:?}: {counts:?}");
                 }
             }
+        }
+    }
+
+    /// A choice and a point from one slot: the first 2^m of them form a (1, m, 3)-net (every
+    /// elementary box of volume 2^(1 - m) holds exactly 2), and the points alone a (0, m, 2)-net.
+    #[test]
+    fn choice_and_point_prefixes_are_nets() {
+        let m = 8u32;
+        let samples: Vec<[f32; 3]> = (0..1u64 << m)
+            .map(|i| SobolSample::new(11, Stream::Eye, 5, i).next_choice_2d())
+            .collect();
+        let count = |shape: &[u32], dims: &[usize]| {
+            let mut counts = vec![0u32; 1 << shape.iter().sum::<u32>()];
+            for p in &samples {
+                let mut cell = 0usize;
+                for (&d, &bits) in dims.iter().zip(shape) {
+                    cell = (cell << bits) | (p[d] * (1u32 << bits) as f32) as usize;
+                }
+                counts[cell] += 1;
+            }
+            counts
+        };
+        for a0 in 0..m {
+            for a1 in 0..m - a0 {
+                let shape = [a0, a1, m - 1 - a0 - a1];
+                let counts = count(&shape, &[0, 1, 2]);
+                assert!(
+                    counts.iter().all(|&c| c == 2),
+                    "shape {shape:?}: {counts:?}"
+                );
+            }
+        }
+        for a in 0..=m {
+            let counts = count(&[a, m - a], &[1, 2]);
+            assert!(
+                counts.iter().all(|&c| c == 1),
+                "point shape {a}: {counts:?}"
+            );
         }
     }
 
