@@ -395,6 +395,20 @@ mod tests {
         );
     }
 
+    /// How many of `points` lie in each elementary box of the dimensions `dims`, split in
+    /// 2^`shape[k]` along `dims[k]`.
+    fn box_counts<const N: usize>(points: &[[f32; N]], dims: &[usize], shape: &[u32]) -> Vec<u32> {
+        let mut counts = vec![0u32; 1 << shape.iter().sum::<u32>()];
+        for p in points {
+            let mut cell = 0usize;
+            for (&d, &bits) in dims.iter().zip(shape) {
+                cell = (cell << bits) | (p[d] * (1u32 << bits) as f32) as usize;
+            }
+            counts[cell] += 1;
+        }
+        counts
+    }
+
     /// The four dimensions of the first 2^m shuffled points form a (3, m, 4)-net: every
     /// elementary box of volume 2^(3 - m) holds exactly 2^3 of them.
     #[test]
@@ -408,14 +422,7 @@ mod tests {
             for a1 in 0..=volume_bits - a0 {
                 for a2 in 0..=volume_bits - a0 - a1 {
                     let a = [a0, a1, a2, volume_bits - a0 - a1 - a2];
-                    let mut counts = vec![0u32; 1 << volume_bits];
-                    for p in &points {
-                        let mut cell = 0usize;
-                        for (x, bits) in p.iter().zip(a) {
-                            cell = (cell << bits) | (x * (1u32 << bits) as f32) as usize;
-                        }
-                        counts[cell] += 1;
-                    }
+                    let counts = box_counts(&points, &[0, 1, 2, 3], &a);
                     assert!(counts.iter().all(|&c| c == 8), "shape {a:?}: {counts:?}");
                 }
             }
@@ -430,21 +437,10 @@ mod tests {
         let samples: Vec<[f32; 3]> = (0..1u64 << m)
             .map(|i| SobolSample::new(11, Stream::Eye, 5, i).next_choice_2d())
             .collect();
-        let count = |shape: &[u32], dims: &[usize]| {
-            let mut counts = vec![0u32; 1 << shape.iter().sum::<u32>()];
-            for p in &samples {
-                let mut cell = 0usize;
-                for (&d, &bits) in dims.iter().zip(shape) {
-                    cell = (cell << bits) | (p[d] * (1u32 << bits) as f32) as usize;
-                }
-                counts[cell] += 1;
-            }
-            counts
-        };
         for a0 in 0..m {
             for a1 in 0..m - a0 {
                 let shape = [a0, a1, m - 1 - a0 - a1];
-                let counts = count(&shape, &[0, 1, 2]);
+                let counts = box_counts(&samples, &[0, 1, 2], &shape);
                 assert!(
                     counts.iter().all(|&c| c == 2),
                     "shape {shape:?}: {counts:?}"
@@ -452,7 +448,7 @@ mod tests {
             }
         }
         for a in 0..=m {
-            let counts = count(&[a, m - a], &[1, 2]);
+            let counts = box_counts(&samples, &[1, 2], &[a, m - a]);
             assert!(
                 counts.iter().all(|&c| c == 1),
                 "point shape {a}: {counts:?}"
