@@ -132,10 +132,14 @@ impl GroupedPoints {
         self.reset(0);
     }
 
-    /// `len` slots, none holding a point yet.
+    /// `len` slots for [`Self::set`] to fill, every one of them. The previous points' groups
+    /// are left as they are, not cleared in a pass of their own, as every slot is overwritten;
+    /// the last group is emptied, so its lanes past `len` hold no stale point.
     pub fn reset(&mut self, len: usize) {
-        self.groups.clear();
         self.groups.resize(len.div_ceil(GROUP), Group::EMPTY);
+        if let Some(last) = self.groups.last_mut() {
+            *last = Group::EMPTY;
+        }
         self.len = len;
     }
 
