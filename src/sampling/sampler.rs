@@ -161,11 +161,7 @@ impl SobolSample {
     #[inline]
     fn next_2d(&mut self) -> [f32; 2] {
         let h = self.next_slot();
-        let (r, [s0, s1]) = (self.shuffled(h), scramble_seeds(h));
-        [
-            to_unit(scrambled(SobolDimension::Zero, r, s0)),
-            to_unit(scrambled(SobolDimension::One, r, s1)),
-        ]
+        point_2d(self.shuffled(h), h)
     }
 
     /// Dimensions 0-2 of one shuffled Sobol' point, the 2D point on dimensions 0 and 1 (as
@@ -176,12 +172,9 @@ impl SobolSample {
     fn next_choice_2d(&mut self) -> [f32; 3] {
         let h = self.next_slot();
         let r = self.shuffled(h);
-        let [s0, s1] = scramble_seeds(h);
-        [
-            to_unit(scrambled(SobolDimension::Two, r, third_seed(h))),
-            to_unit(scrambled(SobolDimension::Zero, r, s0)),
-            to_unit(scrambled(SobolDimension::One, r, s1)),
-        ]
+        let [u, v] = point_2d(r, h);
+        let choice = to_unit(scrambled(SobolDimension::Two, r, third_seed(h)));
+        [choice, u, v]
     }
 
     /// Dimensions 0-3 of one shuffled Sobol' point: a (3, m, 4)-net for every power-of-two
@@ -190,10 +183,11 @@ impl SobolSample {
     fn next_4d(&mut self) -> [f32; 4] {
         let h = self.next_slot();
         let r = self.shuffled(h);
-        let ([s0, s1], [s2, s3]) = (scramble_seeds(h), scramble_seeds(self.next_slot()));
+        let [a, b] = point_2d(r, h);
+        let [s2, s3] = scramble_seeds(self.next_slot());
         [
-            to_unit(scrambled(SobolDimension::Zero, r, s0)),
-            to_unit(scrambled(SobolDimension::One, r, s1)),
+            a,
+            b,
             to_unit(scrambled(SobolDimension::Two, r, s2)),
             to_unit(scrambled(SobolDimension::Three, r, s3)),
         ]
@@ -206,6 +200,17 @@ fn scramble_seeds(h: u64) -> [u32; 2] {
     [
         (h >> 32) as u32,
         (h.wrapping_mul(0xd1b5_4a32_d192_ed03) >> 32) as u32,
+    ]
+}
+
+/// Dimensions 0 and 1 of the shuffled point `r` of the slot hashed `h`, scrambled by the
+/// slot's seeds.
+#[inline]
+fn point_2d(r: u32, h: u64) -> [f32; 2] {
+    let [s0, s1] = scramble_seeds(h);
+    [
+        to_unit(scrambled(SobolDimension::Zero, r, s0)),
+        to_unit(scrambled(SobolDimension::One, r, s1)),
     ]
 }
 
