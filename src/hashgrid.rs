@@ -117,6 +117,13 @@ impl Group {
         z: [f32::NAN; GROUP],
         index: [u32::MAX; GROUP],
     };
+
+    /// Puts the point at `position`, the input's `index`, in `lane`.
+    #[inline]
+    fn set(&mut self, lane: usize, [x, y, z]: [f32; 3], index: u32) {
+        (self.x[lane], self.y[lane], self.z[lane]) = (x, y, z);
+        self.index[lane] = index;
+    }
 }
 
 /// Points in an order of their own (slots), four to a cache line: what a grid's ranges of
@@ -145,9 +152,7 @@ impl GroupedPoints {
 
     /// Puts point `p`, the input's `index`, in `slot`.
     pub fn set(&mut self, slot: usize, p: Vec3, index: u32) {
-        let (group, lane) = (&mut self.groups[slot / GROUP], slot % GROUP);
-        (group.x[lane], group.y[lane], group.z[lane]) = (p.x, p.y, p.z);
-        group.index[lane] = index;
+        self.groups[slot / GROUP].set(slot % GROUP, p.to_array(), index);
     }
 
     pub fn len(&self) -> usize {
@@ -585,10 +590,7 @@ impl HashGrid {
             .for_each(|(chunk, ((part, groups), ends))| {
                 let start = chunk * CHUNK;
                 for (i, record) in part.iter().enumerate() {
-                    let (group, lane) = (&mut groups[i / GROUP], i % GROUP);
-                    let [x, y, z] = record.position;
-                    (group.x[lane], group.y[lane], group.z[lane]) = (x, y, z);
-                    group.index[lane] = record.item.index();
+                    groups[i / GROUP].set(i % GROUP, record.position, record.item.index());
                     *ends += u32::from(is_end(start + i));
                 }
             });
