@@ -725,7 +725,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             Ok(())
         },
         invalid: |o| match o.strategy {
-            Some([s, t]) if t == 0 || s + t < 2 => Some(format!("{s},{t}")),
+            Some([s, t]) if t == 0 || s.saturating_add(t) < 2 => Some(format!("{s},{t}")),
             _ => None,
         },
         expected: "an existing technique S,T: T counts the camera vertex, so T >= 1 and S + T >= 2",
