@@ -162,7 +162,9 @@ fn option_arg(spec: &'static OptionSpec) -> Arg {
             }
             match choices {
                 Some(choices) => arg.value_parser(PossibleValuesParser::new(
-                    choices().into_iter().map(|(n, d)| PossibleValue::new(n).help(d)),
+                    choices()
+                        .into_iter()
+                        .map(|(n, d)| PossibleValue::new(n).help(d)),
                 )),
                 None => arg.value_parser(move |s: &str| {
                     let mut scratch = RenderOptions::DEFAULT;
@@ -175,7 +177,9 @@ fn option_arg(spec: &'static OptionSpec) -> Arg {
 
 impl Args for OptionArgs {
     fn augment_args(cmd: clap::Command) -> clap::Command {
-        OPTIONS.iter().fold(cmd, |cmd, spec| cmd.arg(option_arg(spec)))
+        OPTIONS
+            .iter()
+            .fold(cmd, |cmd, spec| cmd.arg(option_arg(spec)))
     }
 
     fn augment_args_for_update(cmd: clap::Command) -> clap::Command {
@@ -198,7 +202,10 @@ impl FromArgMatches for OptionArgs {
             };
             if let Some(value) = value {
                 spec.read(&mut self.0, value).map_err(|e| {
-                    clap::Error::raw(clap::error::ErrorKind::ValueValidation, with_flags(&e.to_string()))
+                    clap::Error::raw(
+                        clap::error::ErrorKind::ValueValidation,
+                        with_flags(&e.to_string()),
+                    )
                 })?;
             }
         }
@@ -267,7 +274,10 @@ fn parse_trace(s: &str) -> Result<vmerge::film::TraceWindow, String> {
 /// for the library's `` `upg_packet` ``), where the command line has such a flag.
 fn with_flags(message: &str) -> String {
     fn longs(cmd: &clap::Command, found: &mut Vec<String>) {
-        found.extend(cmd.get_arguments().filter_map(|a| a.get_long().map(str::to_string)));
+        found.extend(
+            cmd.get_arguments()
+                .filter_map(|a| a.get_long().map(str::to_string)),
+        );
         for sub in cmd.get_subcommands() {
             longs(sub, found);
         }

@@ -434,6 +434,12 @@ where
     s.parse().map_err(|e: T::Err| e.to_string())
 }
 
+/// A whole number of 32 bits; a value outside them is named with the range.
+fn count(s: &str) -> Result<u32, String> {
+    let wide: i64 = number(s)?;
+    u32::try_from(wide).map_err(|_| format!("{wide} is not in 0..={}", u32::MAX))
+}
+
 fn switch(s: &str) -> Result<bool, String> {
     s.parse()
         .map_err(|_| format!("'{s}': a switch is {SWITCH_ON} or false"))
@@ -467,13 +473,10 @@ fn strategy(s: &str) -> Result<[u32; 2], String> {
 
 /// One of `all` by its name.
 fn by_name<T: Copy>(all: &[T], name: fn(T) -> &'static str, s: &str) -> Result<T, String> {
-    all.iter()
-        .copied()
-        .find(|&t| name(t) == s)
-        .ok_or_else(|| {
-            let names: Vec<&str> = all.iter().map(|&t| name(t)).collect();
-            format!("'{s}': expected one of {}", names.join(", "))
-        })
+    all.iter().copied().find(|&t| name(t) == s).ok_or_else(|| {
+        let names: Vec<&str> = all.iter().map(|&t| name(t)).collect();
+        format!("'{s}': expected one of {}", names.join(", "))
+    })
 }
 
 /// The options table: each option of [`RenderOptions`] once, with its flag, help, default
@@ -486,11 +489,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         short: Some('t'),
         form: Form::Value {
             value_name: "TECHNIQUE",
-            choices: Some(|| {
-                Technique::ALL
-                    .map(|t| (t.name(), t.description()))
-                    .to_vec()
-            }),
+            choices: Some(|| Technique::ALL.map(|t| (t.name(), t.description())).to_vec()),
         },
         help: "",
         takes: every,
@@ -600,7 +599,8 @@ pub static OPTIONS: &[OptionSpec] = &[
             value_name: "ALPHA",
             choices: None,
         },
-        help: "Radius shrinking exponent r_i = r_1 sqrt(i^(alpha-1)) (default 0.75 for vcm, ppm, bpm)",
+        help:
+            "Radius shrinking exponent r_i = r_1 sqrt(i^(alpha-1)) (default 0.75 for vcm, ppm, bpm)",
         takes: Technique::shrinks_radius,
         write: |o| o.alpha.map(|a| a.to_string()),
         parse: |o, s| {
@@ -624,7 +624,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         takes: every,
         write: |o| o.max_path_length.map(|n| n.to_string()),
         parse: |o, s| {
-            o.max_path_length = Some(number(s)?);
+            o.max_path_length = Some(count(s)?);
             Ok(())
         },
         invalid: never_invalid,
@@ -641,7 +641,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         takes: every,
         write: |o| Some(o.roulette.to_string()),
         parse: |o, s| {
-            o.roulette = number(s)?;
+            o.roulette = count(s)?;
             Ok(())
         },
         invalid: never_invalid,
@@ -658,7 +658,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         takes: every,
         write: |o| Some(o.min_path_length.to_string()),
         parse: |o, s| {
-            o.min_path_length = number(s)?;
+            o.min_path_length = count(s)?;
             Ok(())
         },
         invalid: never_invalid,
@@ -675,7 +675,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         takes: Technique::traces_light_paths,
         write: |o| o.light_paths.map(|n| n.to_string()),
         parse: |o, s| {
-            o.light_paths = Some(number(s)?);
+            o.light_paths = Some(count(s)?);
             Ok(())
         },
         invalid: |o| (o.light_paths == Some(0)).then(|| "0".to_string()),
@@ -717,7 +717,8 @@ pub static OPTIONS: &[OptionSpec] = &[
             value_name: "S,T",
             choices: None,
         },
-        help: "bpt: render only the technique with S light and T eye vertices (T counts the camera)",
+        help:
+            "bpt: render only the technique with S light and T eye vertices (T counts the camera)",
         takes: |t| t == Technique::Bpt,
         write: |o| o.strategy.map(|[s, t]| format!("{s},{t}")),
         parse: |o, s| {
@@ -755,7 +756,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         takes: Technique::is_upg,
         write: |o| Some(o.upg_packet.to_string()),
         parse: |o, s| {
-            o.upg_packet = number(s)?;
+            o.upg_packet = count(s)?;
             Ok(())
         },
         invalid: |o| (o.upg_packet != 1 && o.upg_packet != 8).then(|| o.upg_packet.to_string()),
@@ -772,7 +773,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         takes: Technique::is_upg,
         write: |o| Some(o.upg_max_trials.to_string()),
         parse: |o, s| {
-            o.upg_max_trials = number(s)?;
+            o.upg_max_trials = count(s)?;
             Ok(())
         },
         invalid: |o| (o.upg_max_trials == 0).then(|| "0".to_string()),
@@ -845,7 +846,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         takes: |t| matches!(t, Technique::Vcm | Technique::Bpm),
         write: |o| Some(o.density_map_iterations.to_string()),
         parse: |o, s| {
-            o.density_map_iterations = number(s)?;
+            o.density_map_iterations = count(s)?;
             Ok(())
         },
         invalid: |o| (o.density_map_iterations == 0).then(|| "0".to_string()),
@@ -1081,6 +1082,31 @@ mod tests {
         );
         let old: RenderOptions = toml::Value::Table(table).try_into().unwrap();
         assert_eq!(old.sampler, SamplerKind::Independent);
+    }
+
+    /// Recordings older than any of the options added since the first release load, with each
+    /// missing option at the value it had then.
+    #[test]
+    fn recordings_without_the_later_options_load() {
+        let first = toml::toml! {
+            technique = "vcm"
+            seed = 0
+            beta = 1.0
+            roulette = 5
+            no_vc = false
+            no_vm = true
+        };
+        let old: RenderOptions = toml::Value::Table(first).try_into().unwrap();
+        assert_eq!(
+            old,
+            RenderOptions {
+                technique: Technique::Vcm,
+                beta: 1.0,
+                roulette: 5,
+                no_vm: true,
+                ..RenderOptions::RECORDED
+            }
+        );
     }
 
     /// Every field of [`RenderOptions`] has one row: the serialised options name each field

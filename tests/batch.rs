@@ -590,7 +590,10 @@ no_vc = true
     assert_eq!(names("jobs"), expected);
     assert_eq!(names("here"), expected);
     for name in expected {
-        let (jobs, here) = (dir.path().join("jobs").join(name), dir.path().join("here").join(name));
+        let (jobs, here) = (
+            dir.path().join("jobs").join(name),
+            dir.path().join("here").join(name),
+        );
         assert_eq!(
             tools::metadata(&jobs).unwrap().options,
             tools::metadata(&here).unwrap().options,

@@ -12,7 +12,10 @@ fn values(name: &str) -> Vec<String> {
     let (u32_max, u64_max) = (u32::MAX.to_string(), u64::MAX.to_string());
     let (f_min, f_max) = (f32::MIN_POSITIVE.to_string(), f32::MAX.to_string());
     match name {
-        "technique" => Technique::ALL[1..].iter().map(|t| t.name().into()).collect(),
+        "technique" => Technique::ALL[1..]
+            .iter()
+            .map(|t| t.name().into())
+            .collect(),
         "seed" => vec!["1".into(), "4294967296".into(), u64_max],
         "camera" => s(&["front", "1", "a camera, with spaces"]),
         "resolution" => vec!["1x1".into(), "640x480".into(), format!("{u32_max}x1")],

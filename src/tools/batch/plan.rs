@@ -81,7 +81,14 @@ const REFERENCE_KEYS: &[&str] = &["technique", "budget", "iterations", "parts", 
 
 /// Options a plan gives the cells of a level, by their own keys or by expansion:
 /// `techniques`, `seeds`, `cameras`, `resolution`, `beta`, `radius`.
-const EXPANDED: &[&str] = &["technique", "seed", "camera", "resolution", "beta", "radius"];
+const EXPANDED: &[&str] = &[
+    "technique",
+    "seed",
+    "camera",
+    "resolution",
+    "beta",
+    "radius",
+];
 
 /// Options set by a level of the plan under their field names.
 fn is_option(key: &str) -> bool {
