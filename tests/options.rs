@@ -173,3 +173,40 @@ fn values_out_of_range_and_unreadable_arguments_are_refused() {
         assert!(RenderOptions::from_args(args).is_err(), "{args:?}");
     }
 }
+
+/// A batch cell's name carries every option that changes the image apart from those it names
+/// on its own (radius, seed, camera) and the resolution: two values give two names, and every
+/// name is a plain file name.
+#[test]
+fn batch_variant_names_tell_every_value_apart() {
+    use vmerge::tools::batch::variant_name;
+    let mut names = std::collections::BTreeMap::new();
+    for technique in Technique::ALL {
+        let default = RenderOptions {
+            technique,
+            ..RenderOptions::DEFAULT
+        };
+        names.insert(variant_name(&default), format!("{technique}"));
+        for spec in OPTIONS.iter().filter(|s| (s.takes)(technique)) {
+            if matches!(
+                spec.name,
+                "technique" | "seed" | "camera" | "radius" | "resolution"
+            ) {
+                continue;
+            }
+            for value in values(spec.name) {
+                let o = with(technique, spec, &value);
+                let name = variant_name(&o);
+                assert!(
+                    name.chars()
+                        .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c)),
+                    "{name}"
+                );
+                let what = format!("{technique} {} {value}", spec.name);
+                if let Some(earlier) = names.insert(name.clone(), what.clone()) {
+                    panic!("{what} and {earlier} are both named {name}");
+                }
+            }
+        }
+    }
+}
