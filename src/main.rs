@@ -137,13 +137,14 @@ struct RenderArgs {
 /// value name, help, default and accepted values; the values are read by the table's reader.
 struct OptionArgs(RenderOptions);
 
-/// clap keeps `'static` text; the table's flags and defaults are built once per run.
+/// clap keeps `'static` text; the table's flags and defaults are built when the command is,
+/// once to parse and once more to word an error.
 fn leak(s: String) -> &'static str {
     Box::leak(s.into_boxed_str())
 }
 
 fn option_arg(spec: &'static OptionSpec) -> Arg {
-    let mut arg = Arg::new(spec.name).long(leak(spec.flag()[2..].to_string()));
+    let mut arg = Arg::new(spec.name).long(leak(spec.name.replace('_', "-")));
     if let Some(c) = spec.short {
         arg = arg.short(c);
     }

@@ -412,11 +412,6 @@ impl OptionSpec {
             message,
         })
     }
-
-    /// The row of field `name`.
-    pub fn named(name: &str) -> Option<&'static OptionSpec> {
-        OPTIONS.iter().find(|s| s.name == name)
-    }
 }
 
 fn every(_: Technique) -> bool {
