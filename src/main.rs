@@ -149,7 +149,7 @@ fn option_arg(spec: &'static OptionSpec) -> Arg {
         arg = arg.short(c);
     }
     if !spec.help.is_empty() {
-        arg = arg.help(spec.help);
+        arg = arg.help(leak(spec.help_text()));
     }
     match spec.form {
         Form::Switch => arg.action(ArgAction::SetTrue),

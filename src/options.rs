@@ -372,7 +372,8 @@ pub struct OptionSpec {
     /// A one-letter flag beside the long one.
     pub short: Option<char>,
     pub form: Form,
-    /// What the option does, in one line (the command line's help).
+    /// What the option does, in one line; [`OptionSpec::help_text`] names the techniques
+    /// before it when not every one takes the option.
     pub help: &'static str,
     /// The techniques that take the option.
     pub takes: fn(Technique) -> bool,
@@ -392,6 +393,20 @@ impl OptionSpec {
     /// The command line's flag: `--upg-packet`.
     pub fn flag(&self) -> String {
         OptionName(self.name).flag()
+    }
+
+    /// The help line: `help`, after the techniques that take the option where not all do
+    /// (`vcm, bpm: weigh merges ...`).
+    pub fn help_text(&self) -> String {
+        let takes: Vec<Technique> = Technique::ALL
+            .into_iter()
+            .filter(|&t| (self.takes)(t))
+            .collect();
+        if takes.len() == Technique::ALL.len() {
+            self.help.to_string()
+        } else {
+            format!("{}: {}", names(&takes), self.help)
+        }
     }
 
     /// The default as an argument writes it; `None` when it has none.
@@ -574,7 +589,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             value_name: "RADIUS",
             choices: None,
         },
-        help: "Merge radius in world units (default: 0.003 x the scene's bounding-sphere diameter)",
+        help: "merge radius in world units (default: 0.003 x the scene's bounding-sphere diameter)",
         takes: Technique::merges,
         write: |o| o.radius.map(|r| r.to_string()),
         parse: |o, s| {
@@ -594,8 +609,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             value_name: "ALPHA",
             choices: None,
         },
-        help:
-            "Radius shrinking exponent r_i = r_1 sqrt(i^(alpha-1)) (default 0.75 for vcm, ppm, bpm)",
+        help: "radius shrinking exponent r_i = r_1 sqrt(i^(alpha-1)) (default 0.75)",
         takes: Technique::shrinks_radius,
         write: |o| o.alpha.map(|a| a.to_string()),
         parse: |o, s| {
@@ -666,7 +680,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             value_name: "LIGHT_PATHS",
             choices: None,
         },
-        help: "Light sub-paths per iteration, n_VM (default: one per pixel)",
+        help: "light sub-paths per iteration, n_VM (default: one per pixel)",
         takes: Technique::traces_light_paths,
         write: |o| o.light_paths.map(|n| n.to_string()),
         parse: |o, s| {
@@ -680,7 +694,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         name: "no_vc",
         short: None,
         form: Form::Switch,
-        help: "Vertex merging only (vcm, upg, upg-camera)",
+        help: "vertex merging only",
         // Merge-only UPG is the "pristine" technique of 000 sec. 5.2.
         takes: |t| t == Technique::Vcm || t.is_upg(),
         write: |o| o.no_vc.then(|| SWITCH_ON.into()),
@@ -695,7 +709,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         name: "no_vm",
         short: None,
         form: Form::Switch,
-        help: "Vertex connection only (vcm)",
+        help: "vertex connection only",
         takes: |t| t == Technique::Vcm,
         write: |o| o.no_vm.then(|| SWITCH_ON.into()),
         parse: |o, s| {
@@ -712,8 +726,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             value_name: "S,T",
             choices: None,
         },
-        help:
-            "bpt: render only the technique with S light and T eye vertices (T counts the camera)",
+        help: "render only the technique with S light and T eye vertices (T counts the camera)",
         takes: |t| t == Technique::Bpt,
         write: |o| o.strategy.map(|[s, t]| format!("{s},{t}")),
         parse: |o, s| {
@@ -730,7 +743,7 @@ pub static OPTIONS: &[OptionSpec] = &[
         name: "unweighted",
         short: None,
         form: Form::Switch,
-        help: "bpt: leave out the MIS weights (with --strategy: one technique's full estimate)",
+        help: "leave out the MIS weights (with --strategy: one technique's full estimate)",
         takes: |t| t == Technique::Bpt,
         write: |o| o.unweighted.then(|| SWITCH_ON.into()),
         parse: |o, s| {
@@ -747,7 +760,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             value_name: "UPG_PACKET",
             choices: None,
         },
-        help: "upg, upg-camera: trace tentative rays 1 or 8 at a time",
+        help: "trace tentative rays 1 or 8 at a time",
         takes: Technique::is_upg,
         write: |o| Some(o.upg_packet.to_string()),
         parse: |o, s| {
@@ -764,7 +777,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             value_name: "UPG_MAX_TRIALS",
             choices: None,
         },
-        help: "upg, upg-camera: trials after which a merge is dropped (and counted)",
+        help: "trials after which a merge is dropped (and counted)",
         takes: Technique::is_upg,
         write: |o| Some(o.upg_max_trials.to_string()),
         parse: |o, s| {
@@ -820,7 +833,7 @@ pub static OPTIONS: &[OptionSpec] = &[
                     .to_vec()
             }),
         },
-        help: "vcm, bpm: weigh merges by the density of light vertices (002's VCM+ or VCM*)",
+        help: "weigh merges by the density of light vertices (002's VCM+ or VCM*)",
         takes: |t| matches!(t, Technique::Vcm | Technique::Bpm),
         write: |o| o.density_mis.map(|d| d.name().into()),
         parse: |o, s| {
@@ -837,7 +850,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             value_name: "DENSITY_MAP_ITERATIONS",
             choices: None,
         },
-        help: "vcm, bpm: iterations whose light vertices fill the density map",
+        help: "iterations whose light vertices fill the density map",
         takes: |t| matches!(t, Technique::Vcm | Technique::Bpm),
         write: |o| Some(o.density_map_iterations.to_string()),
         parse: |o, s| {
