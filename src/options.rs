@@ -396,7 +396,7 @@ impl OptionSpec {
     }
 
     /// The help line: `help`, after the techniques that take the option where not all do
-    /// (`vcm, bpm: weigh merges ...`).
+    /// (`bpm, vcm: weigh merges ...`).
     pub fn help_text(&self) -> String {
         let takes: Vec<Technique> = Technique::ALL
             .into_iter()
