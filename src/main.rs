@@ -2,16 +2,13 @@
 
 use anyhow::{Context, Result};
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
-use clap::{Args, Parser, Subcommand};
+use clap::{Arg, ArgAction, ArgMatches, Args, CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 use vmerge::accel::AccelKind;
-use vmerge::options::{DensityMis, OptionName, RenderOptions, SamplerKind, Technique};
-
-/// The options' defaults, as the library writes them.
-const DEFAULT: RenderOptions = RenderOptions::DEFAULT;
+use vmerge::options::{Form, OptionSpec, RenderOptions, OPTIONS, SWITCH_ON};
 
 #[derive(Parser)]
 #[command(
@@ -96,8 +93,6 @@ struct PreviewArg {
 struct RenderArgs {
     /// The scene file: TOML, or pbrt-v4 (`.pbrt`).
     scene: PathBuf,
-    #[arg(long, short = 't', value_parser = technique_parser(), default_value = DEFAULT.technique.name())]
-    technique: Technique,
     /// Stop after N iterations (one sample per pixel each).
     #[arg(long, short = 'n')]
     iterations: Option<u64>,
@@ -107,17 +102,9 @@ struct RenderArgs {
     /// Output EXR; a PNG preview is written next to it.
     #[arg(long, short = 'o', default_value = "render.exr")]
     output: PathBuf,
-    #[arg(long, default_value_t = DEFAULT.seed)]
-    seed: u64,
     /// Worker threads (default: all cores); the image does not depend on it.
     #[arg(long)]
     threads: Option<usize>,
-    /// Camera name or index.
-    #[arg(long)]
-    camera: Option<String>,
-    /// WxH, e.g. 512x512.
-    #[arg(long, value_parser = parse_resolution)]
-    resolution: Option<[u32; 2]>,
     #[arg(long, value_parser = accel_parser(), default_value = AccelKind::default_kind().name())]
     accel: AccelKind,
     /// Reference image: record the error series in the output.
@@ -132,7 +119,9 @@ struct RenderArgs {
     /// Do not write the PNG preview.
     #[arg(long)]
     no_png: bool,
-    /// Clamp Phong materials with kd + ks > 1 instead of rejecting the scene.
+    /// Accept a scene with flaws, each with a warning, instead of rejecting it: Phong materials
+    /// with kd + ks > 1 are scaled down, missing textures leave their material's constant,
+    /// missing meshes are skipped and a missing sky image gives a constant sky.
     #[arg(long)]
     lenient: bool,
     /// The memory the render may use, e.g. 8G (default: what the machine has available).
@@ -141,62 +130,88 @@ struct RenderArgs {
     #[command(flatten)]
     preview: PreviewArg,
     #[command(flatten)]
-    technique_options: TechniqueArgs,
+    options: OptionArgs,
 }
 
-#[derive(Args)]
-struct TechniqueArgs {
-    /// MIS power (2 = power heuristic, 1 = balance heuristic).
-    #[arg(long, default_value_t = DEFAULT.beta)]
-    beta: f32,
-    /// Merge radius in world units (default: 0.003 x the scene's bounding-sphere diameter).
-    #[arg(long)]
-    radius: Option<f32>,
-    /// Radius shrinking exponent r_i = r_1 sqrt(i^(alpha-1)) (default 0.75 for vcm, ppm, bpm).
-    #[arg(long)]
-    alpha: Option<f32>,
-    /// Segments of a full path, light to eye; 0 = unbounded (default: the scene's).
-    #[arg(long)]
-    max_path_length: Option<u32>,
-    /// Path length in segments from which Russian roulette may end paths.
-    #[arg(long, default_value_t = DEFAULT.roulette)]
-    roulette: u32,
-    /// Vertex merging only (vcm).
-    #[arg(long)]
-    no_vc: bool,
-    /// Vertex connection only (vcm).
-    #[arg(long)]
-    no_vm: bool,
-    /// Render every triangle flat, ignoring the meshes' vertex normals.
-    #[arg(long)]
-    no_shading_normals: bool,
-    /// bpt: render only the technique with S light and T eye vertices (T counts the camera).
-    #[arg(long, value_name = "S,T", value_parser = parse_strategy)]
-    strategy: Option<[u32; 2]>,
-    /// bpt: leave out the MIS weights (with --strategy: one technique's full estimate).
-    #[arg(long)]
-    unweighted: bool,
-    /// upg, upg-camera: trace tentative rays 1 or 8 at a time.
-    #[arg(long, default_value_t = DEFAULT.upg_packet)]
-    upg_packet: u32,
-    /// upg, upg-camera: trials after which a merge is dropped (and counted).
-    #[arg(long, default_value_t = DEFAULT.upg_max_trials)]
-    upg_max_trials: u32,
-    /// vcm, bpm: weigh merges by the density of light vertices (002's VCM+ or VCM*).
-    #[arg(long, value_parser = density_mis_parser())]
-    density_mis: Option<DensityMis>,
-    /// vcm, bpm: iterations whose light vertices fill the density map.
-    #[arg(long, default_value_t = DEFAULT.density_map_iterations)]
-    density_map_iterations: u32,
-    /// Light sub-paths per iteration, n_VM (default: one per pixel).
-    #[arg(long)]
-    light_paths: Option<u32>,
-    /// Leave out paths of fewer segments (3 drops direct light).
-    #[arg(long, default_value_t = DEFAULT.min_path_length)]
-    min_path_length: u32,
-    /// The numbers sub-paths are built from.
-    #[arg(long, value_parser = sampler_parser(), default_value = DEFAULT.sampler.name())]
-    sampler: SamplerKind,
+/// The render options, one argument per row of the library's table ([`OPTIONS`]): its flag,
+/// value name, help, default and accepted values; the values are read by the table's reader.
+struct OptionArgs(RenderOptions);
+
+/// clap keeps `'static` text; the table's flags and defaults are built when the command is,
+/// once to parse and once more to word an error.
+fn leak(s: String) -> &'static str {
+    Box::leak(s.into_boxed_str())
+}
+
+fn option_arg(spec: &'static OptionSpec) -> Arg {
+    let mut arg = Arg::new(spec.name).long(leak(spec.name.replace('_', "-")));
+    if let Some(c) = spec.short {
+        arg = arg.short(c);
+    }
+    if !spec.help.is_empty() {
+        arg = arg.help(leak(spec.help_text()));
+    }
+    match spec.form {
+        Form::Switch => arg.action(ArgAction::SetTrue),
+        Form::Value {
+            value_name,
+            choices,
+        } => {
+            arg = arg.value_name(value_name).action(ArgAction::Set);
+            if let Some(default) = spec.default_value() {
+                arg = arg.default_value(leak(default));
+            }
+            match choices {
+                Some(choices) => arg.value_parser(PossibleValuesParser::new(
+                    choices()
+                        .into_iter()
+                        .map(|(n, d)| PossibleValue::new(n).help(d)),
+                )),
+                None => arg.value_parser(move |s: &str| {
+                    let mut scratch = RenderOptions::DEFAULT;
+                    (spec.parse)(&mut scratch, s).map(|()| s.to_string())
+                }),
+            }
+        }
+    }
+}
+
+impl Args for OptionArgs {
+    fn augment_args(cmd: clap::Command) -> clap::Command {
+        OPTIONS
+            .iter()
+            .fold(cmd, |cmd, spec| cmd.arg(option_arg(spec)))
+    }
+
+    fn augment_args_for_update(cmd: clap::Command) -> clap::Command {
+        Self::augment_args(cmd)
+    }
+}
+
+impl FromArgMatches for OptionArgs {
+    fn from_arg_matches(matches: &ArgMatches) -> Result<Self, clap::Error> {
+        let mut options = OptionArgs(RenderOptions::DEFAULT);
+        options.update_from_arg_matches(matches)?;
+        Ok(options)
+    }
+
+    fn update_from_arg_matches(&mut self, matches: &ArgMatches) -> Result<(), clap::Error> {
+        for spec in OPTIONS {
+            let value = match spec.form {
+                Form::Switch => matches.get_flag(spec.name).then_some(SWITCH_ON),
+                Form::Value { .. } => matches.get_one::<String>(spec.name).map(String::as_str),
+            };
+            if let Some(value) = value {
+                spec.read(&mut self.0, value).map_err(|e| {
+                    clap::Error::raw(
+                        clap::error::ErrorKind::ValueValidation,
+                        with_flags(&e.to_string()),
+                    )
+                })?;
+            }
+        }
+        Ok(())
+    }
 }
 
 #[derive(Args)]
@@ -242,34 +257,6 @@ fn by_name<T: Copy + Send + Sync + 'static, const N: usize>(
         .try_map(move |given| all.into_iter().find(|&t| name(t) == given).ok_or(unknown))
 }
 
-fn technique_parser() -> impl TypedValueParser<Value = Technique> {
-    by_name(
-        Technique::ALL,
-        Technique::name,
-        Technique::description,
-        "no such technique",
-    )
-}
-
-/// 002's heuristics.
-fn density_mis_parser() -> impl TypedValueParser<Value = DensityMis> {
-    by_name(
-        DensityMis::ALL,
-        DensityMis::name,
-        DensityMis::description,
-        "no such heuristic",
-    )
-}
-
-fn sampler_parser() -> impl TypedValueParser<Value = SamplerKind> {
-    by_name(
-        SamplerKind::ALL,
-        SamplerKind::name,
-        SamplerKind::description,
-        "no such sampler",
-    )
-}
-
 /// The ray-query backends.
 fn accel_parser() -> impl TypedValueParser<Value = AccelKind> {
     by_name(
@@ -280,41 +267,36 @@ fn accel_parser() -> impl TypedValueParser<Value = AccelKind> {
     )
 }
 
-fn parse_resolution(s: &str) -> Result<[u32; 2], String> {
-    let (w, h) = s
-        .split_once('x')
-        .ok_or_else(|| format!("'{s}' is not WxH"))?;
-    let w: u32 = w.parse().map_err(|_| format!("'{s}' is not WxH"))?;
-    let h: u32 = h.parse().map_err(|_| format!("'{s}' is not WxH"))?;
-    if w == 0 || h == 0 {
-        return Err(format!("'{s}' has a zero side"));
-    }
-    Ok([w, h])
-}
-
-fn parse_strategy(s: &str) -> Result<[u32; 2], String> {
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .map_err(|_| format!("'{s}': expected S,T (two whole numbers)"))
-    };
-    match s.split_once(',') {
-        Some((a, b)) => Ok([parse(a)?, parse(b)?]),
-        None => Err(format!("'{s}': expected S,T (two whole numbers)")),
-    }
-}
-
 fn parse_trace(s: &str) -> Result<vmerge::film::TraceWindow, String> {
     s.parse()
 }
 
+/// A library message as the command line writes it: option names as flags (`--upg-packet`
+/// for the library's `` `upg_packet` ``), where the command line has such a flag.
+fn with_flags(message: &str) -> String {
+    fn longs(cmd: &clap::Command, found: &mut Vec<String>) {
+        found.extend(
+            cmd.get_arguments()
+                .filter_map(|a| a.get_long().map(str::to_string)),
+        );
+        for sub in cmd.get_subcommands() {
+            longs(sub, found);
+        }
+    }
+    let mut flags = Vec::new();
+    longs(&Cli::command(), &mut flags);
+    vmerge::options::respell(message, |name| {
+        let long = name.replace('_', "-");
+        flags.contains(&long).then(|| format!("--{long}"))
+    })
+}
+
 fn main() -> ExitCode {
-    OptionName::spell_as_flags();
     let cli = Cli::parse();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", with_flags(&format!("{e:#}")));
             // Bad input (scenes, files, options) is exit code 2; anything else 1.
             if is_input_error(&e) {
                 ExitCode::from(2)
@@ -387,33 +369,9 @@ fn set_threads(threads: Option<usize>) -> Result<()> {
 fn render(args: RenderArgs) -> Result<()> {
     vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
-    let t = args.technique_options;
-    let options = RenderOptions {
-        technique: args.technique,
-        seed: args.seed,
-        camera: args.camera,
-        resolution: args.resolution,
-        beta: t.beta,
-        radius: t.radius,
-        alpha: t.alpha,
-        max_path_length: t.max_path_length,
-        roulette: t.roulette,
-        no_vc: t.no_vc,
-        no_vm: t.no_vm,
-        strategy: t.strategy,
-        unweighted: t.unweighted,
-        upg_packet: t.upg_packet,
-        upg_max_trials: t.upg_max_trials,
-        density_mis: t.density_mis,
-        density_map_iterations: t.density_map_iterations,
-        no_shading_normals: t.no_shading_normals,
-        light_paths: t.light_paths,
-        min_path_length: t.min_path_length,
-        sampler: t.sampler,
-    };
     let setup = vmerge::render::NewRender {
         scene: args.scene,
-        options,
+        options: args.options.0,
         accel: args.accel,
         lenient: args.lenient,
         output: args.output,

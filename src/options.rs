@@ -1,15 +1,15 @@
 //! The options of a render, in one place: the techniques, [`RenderOptions`] with its defaults,
-//! and [`RULES`], the one table of which technique takes which option and what values it
-//! accepts. A leaf: everything above (the integrators, the render loop, the film's metadata,
+//! and [`OPTIONS`], the one table that says of each option its flag, help, default, which
+//! techniques take it, its valid values, and how it is written as a command-line argument and
+//! read back. A leaf: everything above (the integrators, the render loop, the film's metadata,
 //! the tools, the command line) takes its options from here.
 //!
-//! Options are named by [`OptionName`], data rather than text, so that a front end decides how
-//! they are spelled in messages (the command line writes `--upg-packet`, the library
-//! `` `upg_packet` ``).
+//! Options are named by [`OptionName`], data rather than text: the library writes
+//! `` `upg_packet` ``, and a front end respells its messages ([`respell`]; the command line
+//! writes `--upg-packet`).
 
 use serde::{Deserialize, Serialize};
 use std::fmt;
-use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 use thiserror::Error;
 
@@ -156,8 +156,11 @@ impl DensityMis {
     }
 }
 
-/// Every option that changes the image. Serialized into the EXR so `continue` can resume.
+/// Every option that changes the image. Serialized into the EXR so `continue` can resume; a
+/// field a recording lacks (it was written before the option existed) reads as
+/// [`RenderOptions::RECORDED`] has it. [`OPTIONS`] says everything else about each field.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default = "RenderOptions::recorded")]
 pub struct RenderOptions {
     pub technique: Technique,
     pub seed: u64,
@@ -176,56 +179,29 @@ pub struct RenderOptions {
     pub no_vc: bool,
     pub no_vm: bool,
     /// `bpt` only: render the contribution of one (s, t) technique alone.
-    #[serde(default)]
     pub strategy: Option<[u32; 2]>,
     /// `bpt` only: leave the MIS weights out (each technique at weight 1).
-    #[serde(default)]
     pub unweighted: bool,
     /// `upg`, `upg-camera`: tentative rays traced 1 or 8 at a time.
-    #[serde(default = "default_upg_packet")]
     pub upg_packet: u32,
     /// `upg`, `upg-camera`: Bernoulli trials after which a merge is dropped.
-    #[serde(default = "default_upg_max_trials")]
     pub upg_max_trials: u32,
     /// `vcm`, `bpm`: 002's density-map heuristic instead of VCM's.
-    #[serde(default)]
     pub density_mis: Option<DensityMis>,
     /// Iterations whose light vertices fill the density map; after them it is fixed (002
     /// sec. 5.1), so the weights are deterministic.
-    #[serde(default = "default_density_map_iterations")]
     pub density_map_iterations: u32,
     /// Render every triangle flat, ignoring the meshes' vertex normals (applied when the scene
     /// is loaded).
-    #[serde(default)]
     pub no_shading_normals: bool,
     /// Light sub-paths per iteration, n_VM (the thesis's `--num-photons`); `None` = one per
     /// pixel (001 sec. 2.3).
-    #[serde(default)]
     pub light_paths: Option<u32>,
     /// Paths of fewer segments are left out of the image (0 and 1 keep every path; 3 drops
     /// direct light, as 000 Fig. 4.3 does).
-    #[serde(default)]
     pub min_path_length: u32,
-    /// The numbers sub-paths are built from. Renders written before the choice existed drew
-    /// independent numbers, so that is what a file without it continues with.
-    #[serde(default = "independent")]
+    /// The numbers sub-paths are built from.
     pub sampler: SamplerKind,
-}
-
-fn independent() -> SamplerKind {
-    SamplerKind::Independent
-}
-
-fn default_density_map_iterations() -> u32 {
-    RenderOptions::DEFAULT.density_map_iterations
-}
-
-fn default_upg_packet() -> u32 {
-    RenderOptions::DEFAULT.upg_packet
-}
-
-fn default_upg_max_trials() -> u32 {
-    RenderOptions::DEFAULT.upg_max_trials
 }
 
 impl RenderOptions {
@@ -254,6 +230,18 @@ impl RenderOptions {
         sampler: SamplerKind::Sobol,
     };
 
+    /// What a recorded field that is absent means: its default, but for the sampler. Renders
+    /// written before the sampler was a choice drew independent numbers, so that is what a
+    /// file without it continues with.
+    pub const RECORDED: RenderOptions = RenderOptions {
+        sampler: SamplerKind::Independent,
+        ..RenderOptions::DEFAULT
+    };
+
+    fn recorded() -> RenderOptions {
+        RenderOptions::RECORDED
+    }
+
     /// The radius-shrinking exponent a render uses: the given one, 0.75 for the techniques
     /// whose density estimate shrinks its radius (000 eq. 2.85), and 1 (a fixed radius) for
     /// the rest; UPG is unbiased at any radius (000 sec. 2.4.6).
@@ -265,29 +253,90 @@ impl RenderOptions {
         }
     }
 
-    /// Checks every option against [`RULES`]: an option the technique does not take must keep
-    /// its default, and every value must lie in its range.
+    /// Whether the render connects vertices (001's vertex connection: light sampling,
+    /// light-to-camera and sub-path connections): not the light tracer nor the photon
+    /// mappers, and the rest unless `no_vc`.
+    pub fn connects(&self) -> bool {
+        match self.technique {
+            Technique::Lt | Technique::Ppm | Technique::Bpm => false,
+            _ => !self.no_vc,
+        }
+    }
+
+    /// Whether the render merges vertices: the techniques that merge, vcm unless `no_vm`
+    /// (the one technique that takes it).
+    pub fn merges(&self) -> bool {
+        match self.technique {
+            Technique::Vcm => !self.no_vm,
+            t => t.merges(),
+        }
+    }
+
+    /// Checks every option against [`OPTIONS`]: an option the technique does not take must
+    /// keep its default, and every value must lie in its range.
     pub fn validate(&self) -> Result<(), OptionError> {
-        for rule in RULES {
-            if !(rule.takes)(self.technique) && (rule.is_set)(self) {
+        for spec in OPTIONS {
+            if !(spec.takes)(self.technique) && spec.is_set(self) {
                 return Err(OptionError::NotTaken {
-                    option: OptionName(rule.name),
+                    option: OptionName(spec.name),
                     technique: self.technique,
                     takes: Technique::ALL
                         .into_iter()
-                        .filter(|&t| (rule.takes)(t))
+                        .filter(|&t| (spec.takes)(t))
                         .collect(),
                 });
             }
-            if let Some(value) = (rule.invalid)(self) {
+            if let Some(value) = (spec.invalid)(self) {
                 return Err(OptionError::OutOfRange {
-                    option: OptionName(rule.name),
+                    option: OptionName(spec.name),
                     value,
-                    expected: rule.expected,
+                    expected: spec.expected,
                 });
             }
         }
         Ok(())
+    }
+
+    /// The command-line arguments that give these options: every option that differs from
+    /// its default, the technique always, in [`OPTIONS`]' order. [`RenderOptions::from_args`]
+    /// reads them back.
+    pub fn to_args(&self) -> Vec<String> {
+        let mut args = Vec::new();
+        for spec in OPTIONS {
+            if spec.name != "technique" && !spec.is_set(self) {
+                continue;
+            }
+            args.push(spec.flag());
+            if let (Form::Value { .. }, Some(value)) = (spec.form, (spec.write)(self)) {
+                args.push(value);
+            }
+        }
+        args
+    }
+
+    /// Options from command-line arguments as [`RenderOptions::to_args`] writes them (and the
+    /// command line takes them: `--flag VALUE`, a switch alone), each read by its
+    /// [`OptionSpec::read`]; what is not given keeps its default. Not validated.
+    pub fn from_args<S: AsRef<str>>(args: &[S]) -> Result<RenderOptions, OptionError> {
+        let mut options = RenderOptions::DEFAULT;
+        let mut args = args.iter().map(AsRef::as_ref);
+        while let Some(arg) = args.next() {
+            let spec = OPTIONS
+                .iter()
+                .find(|s| s.flag() == arg || s.short.is_some_and(|c| arg == format!("-{c}")))
+                .ok_or_else(|| OptionError::Unknown {
+                    argument: arg.to_string(),
+                })?;
+            let value = match spec.form {
+                Form::Switch => SWITCH_ON,
+                Form::Value { .. } => args.next().ok_or(OptionError::Needs {
+                    option: OptionName(spec.name),
+                    message: "needs a value".into(),
+                })?,
+            };
+            spec.read(&mut options, value)?;
+        }
+        Ok(options)
     }
 }
 
@@ -297,18 +346,87 @@ impl Default for RenderOptions {
     }
 }
 
-/// One row of the options table.
-pub struct OptionRule {
-    /// The field of [`RenderOptions`] (the command line spells it with dashes).
+/// How an option is given on the command line.
+#[derive(Clone, Copy, Debug)]
+pub enum Form {
+    /// A flag alone, which turns the option on.
+    Switch,
+    /// A flag and a value, shown as `value_name` in help; `choices`, when given, lists the
+    /// values it accepts with their meaning.
+    Value {
+        value_name: &'static str,
+        choices: Option<fn() -> Vec<Choice>>,
+    },
+}
+
+/// One value of an option that takes a few named ones: its name and what it means.
+pub type Choice = (&'static str, &'static str);
+
+/// The value [`OptionSpec::read`] takes for a switch that is given.
+pub const SWITCH_ON: &str = "true";
+
+/// One row of the options table: a field of [`RenderOptions`] and everything said about it.
+pub struct OptionSpec {
+    /// The field of [`RenderOptions`]; the command line spells it with dashes (`--upg-packet`).
     pub name: &'static str,
+    /// A one-letter flag beside the long one.
+    pub short: Option<char>,
+    pub form: Form,
+    /// What the option does, in one line; [`OptionSpec::help_text`] names the techniques
+    /// before it when not every one takes the option.
+    pub help: &'static str,
     /// The techniques that take the option.
     pub takes: fn(Technique) -> bool,
-    /// Whether the option differs from its default.
-    pub is_set: fn(&RenderOptions) -> bool,
+    /// The value as an argument writes it; `None` when it has none (an optional value that is
+    /// not given, a switch that is off). The default is what [`RenderOptions::DEFAULT`] writes.
+    pub write: fn(&RenderOptions) -> Option<String>,
+    /// Sets the option from an argument as `write` writes it ([`SWITCH_ON`] for a switch);
+    /// the message says why a value is not one.
+    pub parse: fn(&mut RenderOptions, &str) -> Result<(), String>,
     /// The value, written out, when it lies outside the valid range.
     pub invalid: fn(&RenderOptions) -> Option<String>,
     /// The valid range, in words.
     pub expected: &'static str,
+}
+
+impl OptionSpec {
+    /// The command line's flag: `--upg-packet`.
+    pub fn flag(&self) -> String {
+        OptionName(self.name).flag()
+    }
+
+    /// The help line: `help`, after the techniques that take the option where not all do
+    /// (`bpm, vcm: weigh merges ...`).
+    pub fn help_text(&self) -> String {
+        let takes: Vec<Technique> = Technique::ALL
+            .into_iter()
+            .filter(|&t| (self.takes)(t))
+            .collect();
+        if takes.len() == Technique::ALL.len() {
+            self.help.to_string()
+        } else {
+            format!("{}: {}", names(&takes), self.help)
+        }
+    }
+
+    /// The default as an argument writes it; `None` when it has none.
+    pub fn default_value(&self) -> Option<String> {
+        (self.write)(&RenderOptions::DEFAULT)
+    }
+
+    /// Whether the option differs from its default.
+    pub fn is_set(&self, o: &RenderOptions) -> bool {
+        (self.write)(o) != self.default_value()
+    }
+
+    /// Sets the option in `o` from an argument.
+    pub fn read(&self, o: &mut RenderOptions, value: &str) -> Result<(), OptionError> {
+        (self.parse)(o, value).map_err(|message| OptionError::Unreadable {
+            option: OptionName(self.name),
+            value: value.to_string(),
+            message,
+        })
+    }
 }
 
 fn every(_: Technique) -> bool {
@@ -319,145 +437,426 @@ fn never_invalid(_: &RenderOptions) -> Option<String> {
     None
 }
 
-/// The options table: which technique takes which option, and its valid values. Seed,
-/// camera, resolution and the path-length options apply to every technique.
-pub static RULES: &[OptionRule] = &[
-    OptionRule {
-        name: "resolution",
+fn number<T: std::str::FromStr>(s: &str) -> Result<T, String>
+where
+    T::Err: fmt::Display,
+{
+    s.parse().map_err(|e: T::Err| e.to_string())
+}
+
+/// A whole number of 32 bits; a value outside them is named with the range.
+fn count(s: &str) -> Result<u32, String> {
+    let wide: i64 = number(s)?;
+    u32::try_from(wide).map_err(|_| format!("{wide} is not in 0..={}", u32::MAX))
+}
+
+fn switch(s: &str) -> Result<bool, String> {
+    s.parse()
+        .map_err(|_| format!("'{s}': a switch is {SWITCH_ON} or false"))
+}
+
+/// `WxH`, both sides at least 1.
+fn resolution(s: &str) -> Result<[u32; 2], String> {
+    let side = |v: &str| v.parse::<u32>().map_err(|_| format!("'{s}' is not WxH"));
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| format!("'{s}' is not WxH"))?;
+    let (w, h) = (side(w)?, side(h)?);
+    if w == 0 || h == 0 {
+        return Err(format!("'{s}' has a zero side"));
+    }
+    Ok([w, h])
+}
+
+/// `S,T`.
+fn strategy(s: &str) -> Result<[u32; 2], String> {
+    let part = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("'{s}': expected S,T (two whole numbers)"))
+    };
+    match s.split_once(',') {
+        Some((a, b)) => Ok([part(a)?, part(b)?]),
+        None => Err(format!("'{s}': expected S,T (two whole numbers)")),
+    }
+}
+
+/// One of `all` by its name.
+fn by_name<T: Copy>(all: &[T], name: fn(T) -> &'static str, s: &str) -> Result<T, String> {
+    all.iter().copied().find(|&t| name(t) == s).ok_or_else(|| {
+        let names: Vec<&str> = all.iter().map(|&t| name(t)).collect();
+        format!("'{s}': expected one of {}", names.join(", "))
+    })
+}
+
+/// The options table: each option of [`RenderOptions`] once, with its flag, help, default
+/// (what it writes for [`RenderOptions::DEFAULT`]), the techniques that take it, its valid
+/// range, and how it is written as an argument and read back. The command line's arguments,
+/// validation, batch plans' keys, command lines and cell names are all derived from it.
+pub static OPTIONS: &[OptionSpec] = &[
+    OptionSpec {
+        name: "technique",
+        short: Some('t'),
+        form: Form::Value {
+            value_name: "TECHNIQUE",
+            choices: Some(|| Technique::ALL.map(|t| (t.name(), t.description())).to_vec()),
+        },
+        help: "",
         takes: every,
-        is_set: |o| o.resolution.is_some(),
+        write: |o| Some(o.technique.name().into()),
+        parse: |o, s| {
+            o.technique = by_name(&Technique::ALL, Technique::name, s)?;
+            Ok(())
+        },
+        invalid: never_invalid,
+        expected: "",
+    },
+    OptionSpec {
+        name: "seed",
+        short: None,
+        form: Form::Value {
+            value_name: "SEED",
+            choices: None,
+        },
+        help: "",
+        takes: every,
+        write: |o| Some(o.seed.to_string()),
+        parse: |o, s| {
+            o.seed = number(s)?;
+            Ok(())
+        },
+        invalid: never_invalid,
+        expected: "",
+    },
+    OptionSpec {
+        name: "camera",
+        short: None,
+        form: Form::Value {
+            value_name: "CAMERA",
+            choices: None,
+        },
+        help: "Camera name or index",
+        takes: every,
+        write: |o| o.camera.clone(),
+        parse: |o, s| {
+            o.camera = Some(s.to_string());
+            Ok(())
+        },
+        invalid: never_invalid,
+        expected: "",
+    },
+    OptionSpec {
+        name: "resolution",
+        short: None,
+        form: Form::Value {
+            value_name: "RESOLUTION",
+            choices: None,
+        },
+        help: "WxH, e.g. 512x512",
+        takes: every,
+        write: |o| o.resolution.map(|[w, h]| format!("{w}x{h}")),
+        parse: |o, s| {
+            o.resolution = Some(resolution(s)?);
+            Ok(())
+        },
         invalid: |o| match o.resolution {
             Some([w, h]) if w == 0 || h == 0 => Some(format!("{w}x{h}")),
             _ => None,
         },
         expected: "a width and a height of at least 1",
     },
-    OptionRule {
+    OptionSpec {
         name: "beta",
+        short: None,
+        form: Form::Value {
+            value_name: "BETA",
+            choices: None,
+        },
+        help: "MIS power (2 = power heuristic, 1 = balance heuristic)",
         takes: every,
-        is_set: |o| o.beta != RenderOptions::DEFAULT.beta,
+        write: |o| Some(o.beta.to_string()),
+        parse: |o, s| {
+            o.beta = number(s)?;
+            Ok(())
+        },
         invalid: |o| (!(o.beta.is_finite() && o.beta >= 0.0)).then(|| o.beta.to_string()),
         expected: "a finite power >= 0 (1 = balance heuristic, 2 = power heuristic)",
     },
-    OptionRule {
+    OptionSpec {
         name: "radius",
+        short: None,
+        form: Form::Value {
+            value_name: "RADIUS",
+            choices: None,
+        },
+        help: "merge radius in world units (default: 0.003 x the scene's bounding-sphere diameter)",
         takes: Technique::merges,
-        is_set: |o| o.radius.is_some(),
+        write: |o| o.radius.map(|r| r.to_string()),
+        parse: |o, s| {
+            o.radius = Some(number(s)?);
+            Ok(())
+        },
         invalid: |o| match o.radius {
             Some(r) if !(r.is_finite() && r > 0.0) => Some(r.to_string()),
             _ => None,
         },
         expected: "a finite radius > 0 in world units",
     },
-    OptionRule {
+    OptionSpec {
         name: "alpha",
+        short: None,
+        form: Form::Value {
+            value_name: "ALPHA",
+            choices: None,
+        },
+        help: "radius shrinking exponent r_i = r_1 sqrt(i^(alpha-1)) (default 0.75)",
         takes: Technique::shrinks_radius,
-        is_set: |o| o.alpha.is_some(),
+        write: |o| o.alpha.map(|a| a.to_string()),
+        parse: |o, s| {
+            o.alpha = Some(number(s)?);
+            Ok(())
+        },
         invalid: |o| match o.alpha {
             Some(a) if !(a > 0.0 && a <= 1.0) => Some(a.to_string()),
             _ => None,
         },
         expected: "an exponent in (0, 1] (1 keeps the radius)",
     },
-    OptionRule {
+    OptionSpec {
         name: "max_path_length",
+        short: None,
+        form: Form::Value {
+            value_name: "MAX_PATH_LENGTH",
+            choices: None,
+        },
+        help: "Segments of a full path, light to eye; 0 = unbounded (default: the scene's)",
         takes: every,
-        is_set: |o| o.max_path_length.is_some(),
+        write: |o| o.max_path_length.map(|n| n.to_string()),
+        parse: |o, s| {
+            o.max_path_length = Some(count(s)?);
+            Ok(())
+        },
         invalid: never_invalid,
         expected: "",
     },
-    OptionRule {
+    OptionSpec {
         name: "roulette",
+        short: None,
+        form: Form::Value {
+            value_name: "ROULETTE",
+            choices: None,
+        },
+        help: "Path length in segments from which Russian roulette may end paths",
         takes: every,
-        is_set: |o| o.roulette != RenderOptions::DEFAULT.roulette,
+        write: |o| Some(o.roulette.to_string()),
+        parse: |o, s| {
+            o.roulette = count(s)?;
+            Ok(())
+        },
         invalid: never_invalid,
         expected: "",
     },
-    OptionRule {
+    OptionSpec {
         name: "min_path_length",
+        short: None,
+        form: Form::Value {
+            value_name: "MIN_PATH_LENGTH",
+            choices: None,
+        },
+        help: "Leave out paths of fewer segments (3 drops direct light)",
         takes: every,
-        is_set: |o| o.min_path_length != RenderOptions::DEFAULT.min_path_length,
+        write: |o| Some(o.min_path_length.to_string()),
+        parse: |o, s| {
+            o.min_path_length = count(s)?;
+            Ok(())
+        },
         invalid: never_invalid,
         expected: "",
     },
-    OptionRule {
+    OptionSpec {
         name: "light_paths",
+        short: None,
+        form: Form::Value {
+            value_name: "LIGHT_PATHS",
+            choices: None,
+        },
+        help: "light sub-paths per iteration, n_VM (default: one per pixel)",
         takes: Technique::traces_light_paths,
-        is_set: |o| o.light_paths.is_some(),
+        write: |o| o.light_paths.map(|n| n.to_string()),
+        parse: |o, s| {
+            o.light_paths = Some(count(s)?);
+            Ok(())
+        },
         invalid: |o| (o.light_paths == Some(0)).then(|| "0".to_string()),
         expected: "at least 1 light sub-path per iteration",
     },
-    OptionRule {
+    OptionSpec {
         name: "no_vc",
+        short: None,
+        form: Form::Switch,
+        help: "vertex merging only",
         // Merge-only UPG is the "pristine" technique of 000 sec. 5.2.
         takes: |t| t == Technique::Vcm || t.is_upg(),
-        is_set: |o| o.no_vc,
+        write: |o| o.no_vc.then(|| SWITCH_ON.into()),
+        parse: |o, s| {
+            o.no_vc = switch(s)?;
+            Ok(())
+        },
         invalid: never_invalid,
         expected: "",
     },
-    OptionRule {
+    OptionSpec {
         name: "no_vm",
+        short: None,
+        form: Form::Switch,
+        help: "vertex connection only",
         takes: |t| t == Technique::Vcm,
-        is_set: |o| o.no_vm,
+        write: |o| o.no_vm.then(|| SWITCH_ON.into()),
+        parse: |o, s| {
+            o.no_vm = switch(s)?;
+            Ok(())
+        },
         invalid: never_invalid,
         expected: "",
     },
-    OptionRule {
+    OptionSpec {
         name: "strategy",
+        short: None,
+        form: Form::Value {
+            value_name: "S,T",
+            choices: None,
+        },
+        help: "render only the technique with S light and T eye vertices (T counts the camera)",
         takes: |t| t == Technique::Bpt,
-        is_set: |o| o.strategy.is_some(),
+        write: |o| o.strategy.map(|[s, t]| format!("{s},{t}")),
+        parse: |o, s| {
+            o.strategy = Some(strategy(s)?);
+            Ok(())
+        },
         invalid: |o| match o.strategy {
-            Some([s, t]) if t == 0 || s + t < 2 => Some(format!("{s},{t}")),
+            Some([s, t]) if t == 0 || s.saturating_add(t) < 2 => Some(format!("{s},{t}")),
             _ => None,
         },
         expected: "an existing technique S,T: T counts the camera vertex, so T >= 1 and S + T >= 2",
     },
-    OptionRule {
+    OptionSpec {
         name: "unweighted",
+        short: None,
+        form: Form::Switch,
+        help: "leave out the MIS weights (with --strategy: one technique's full estimate)",
         takes: |t| t == Technique::Bpt,
-        is_set: |o| o.unweighted,
+        write: |o| o.unweighted.then(|| SWITCH_ON.into()),
+        parse: |o, s| {
+            o.unweighted = switch(s)?;
+            Ok(())
+        },
         invalid: never_invalid,
         expected: "",
     },
-    OptionRule {
+    OptionSpec {
         name: "upg_packet",
+        short: None,
+        form: Form::Value {
+            value_name: "UPG_PACKET",
+            choices: None,
+        },
+        help: "trace tentative rays 1 or 8 at a time",
         takes: Technique::is_upg,
-        is_set: |o| o.upg_packet != RenderOptions::DEFAULT.upg_packet,
+        write: |o| Some(o.upg_packet.to_string()),
+        parse: |o, s| {
+            o.upg_packet = count(s)?;
+            Ok(())
+        },
         invalid: |o| (o.upg_packet != 1 && o.upg_packet != 8).then(|| o.upg_packet.to_string()),
         expected: "1 or 8 tentative rays at a time",
     },
-    OptionRule {
+    OptionSpec {
         name: "upg_max_trials",
+        short: None,
+        form: Form::Value {
+            value_name: "UPG_MAX_TRIALS",
+            choices: None,
+        },
+        help: "trials after which a merge is dropped (and counted)",
         takes: Technique::is_upg,
-        is_set: |o| o.upg_max_trials != RenderOptions::DEFAULT.upg_max_trials,
+        write: |o| Some(o.upg_max_trials.to_string()),
+        parse: |o, s| {
+            o.upg_max_trials = count(s)?;
+            Ok(())
+        },
         invalid: |o| (o.upg_max_trials == 0).then(|| "0".to_string()),
         expected: "at least 1 trial",
     },
-    OptionRule {
+    OptionSpec {
         name: "sampler",
+        short: None,
+        form: Form::Value {
+            value_name: "SAMPLER",
+            choices: Some(|| {
+                SamplerKind::ALL
+                    .map(|k| (k.name(), k.description()))
+                    .to_vec()
+            }),
+        },
+        help: "The numbers sub-paths are built from",
         takes: every,
-        is_set: |o| o.sampler != RenderOptions::DEFAULT.sampler,
+        write: |o| Some(o.sampler.name().into()),
+        parse: |o, s| {
+            o.sampler = by_name(&SamplerKind::ALL, SamplerKind::name, s)?;
+            Ok(())
+        },
         invalid: never_invalid,
         expected: "",
     },
-    OptionRule {
+    OptionSpec {
         name: "no_shading_normals",
+        short: None,
+        form: Form::Switch,
+        help: "Render every triangle flat, ignoring the meshes' vertex normals",
         takes: every,
-        is_set: |o| o.no_shading_normals,
+        write: |o| o.no_shading_normals.then(|| SWITCH_ON.into()),
+        parse: |o, s| {
+            o.no_shading_normals = switch(s)?;
+            Ok(())
+        },
         invalid: never_invalid,
         expected: "",
     },
-    OptionRule {
+    OptionSpec {
         name: "density_mis",
+        short: None,
+        form: Form::Value {
+            value_name: "DENSITY_MIS",
+            choices: Some(|| {
+                DensityMis::ALL
+                    .map(|d| (d.name(), d.description()))
+                    .to_vec()
+            }),
+        },
+        help: "weigh merges by the density of light vertices (002's VCM+ or VCM*)",
         takes: |t| matches!(t, Technique::Vcm | Technique::Bpm),
-        is_set: |o| o.density_mis.is_some(),
+        write: |o| o.density_mis.map(|d| d.name().into()),
+        parse: |o, s| {
+            o.density_mis = Some(by_name(&DensityMis::ALL, DensityMis::name, s)?);
+            Ok(())
+        },
         invalid: |o| (o.density_mis.is_some() && o.no_vm).then(|| "with no merges".to_string()),
         expected: "merges to weigh (not with no_vm)",
     },
-    OptionRule {
+    OptionSpec {
         name: "density_map_iterations",
+        short: None,
+        form: Form::Value {
+            value_name: "DENSITY_MAP_ITERATIONS",
+            choices: None,
+        },
+        help: "iterations whose light vertices fill the density map",
         takes: |t| matches!(t, Technique::Vcm | Technique::Bpm),
-        is_set: |o| o.density_map_iterations != RenderOptions::DEFAULT.density_map_iterations,
+        write: |o| Some(o.density_map_iterations.to_string()),
+        parse: |o, s| {
+            o.density_map_iterations = count(s)?;
+            Ok(())
+        },
         invalid: |o| (o.density_map_iterations == 0).then(|| "0".to_string()),
         expected: "at least 1 iteration",
     },
@@ -569,29 +968,58 @@ pub fn parse_duration(s: &str) -> Result<std::time::Duration, String> {
         .map_err(|_| format!("'{s}' is too long a duration"))
 }
 
-/// Whether [`OptionName`]s are written as command-line flags; set once by the command line.
-static SPELL_AS_FLAGS: AtomicBool = AtomicBool::new(false);
-
 /// The name of an option (or of another setting a message refers to, such as a stopping
-/// condition), as data: messages print it in the front end's spelling.
+/// condition), as data. The library writes it `` `upg_packet` ``; a front end that spells it
+/// otherwise rewrites its messages with [`respell`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct OptionName(pub &'static str);
 
 impl OptionName {
-    /// From now on, messages write option names as command-line flags (`--upg-packet`).
-    pub fn spell_as_flags() {
-        SPELL_AS_FLAGS.store(true, Ordering::Relaxed);
+    /// The command line's flag: `--upg-packet`.
+    pub fn flag(self) -> String {
+        format!("--{}", self.0.replace('_', "-"))
     }
 }
 
 impl fmt::Display for OptionName {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if SPELL_AS_FLAGS.load(Ordering::Relaxed) {
-            write!(f, "--{}", self.0.replace('_', "-"))
-        } else {
-            write!(f, "`{}`", self.0)
+        write!(f, "`{}`", self.0)
+    }
+}
+
+/// `message` with every option name written as [`OptionName`] writes it (`` `upg_packet` ``)
+/// replaced by `spelling(name)`, where that gives one; other quoted words stay as they are.
+pub fn respell(message: &str, spelling: impl Fn(&str) -> Option<String>) -> String {
+    let is_name = |w: &str| {
+        !w.is_empty()
+            && w.chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '_')
+    };
+    let mut out = String::with_capacity(message.len());
+    let mut rest = message;
+    while let Some(open) = rest.find('`') {
+        out.push_str(&rest[..open]);
+        let after = &rest[open + 1..];
+        let spelled = after.find('`').and_then(|close| {
+            let word = &after[..close];
+            is_name(word)
+                .then(|| spelling(word))
+                .flatten()
+                .map(|s| (s, close))
+        });
+        match spelled {
+            Some((s, close)) => {
+                out.push_str(&s);
+                rest = &after[close + 1..];
+            }
+            None => {
+                out.push('`');
+                rest = after;
+            }
         }
     }
+    out.push_str(rest);
+    out
 }
 
 /// Options that do not mean anything together.
@@ -618,6 +1046,14 @@ pub enum OptionError {
     },
     #[error("{option}: {message}")]
     Needs { option: OptionName, message: String },
+    #[error("{option} '{value}': {message}")]
+    Unreadable {
+        option: OptionName,
+        value: String,
+        message: String,
+    },
+    #[error("'{argument}' is no render option")]
+    Unknown { argument: String },
 }
 
 fn names(techniques: &[Technique]) -> String {
@@ -656,12 +1092,76 @@ mod tests {
         assert_eq!(old.sampler, SamplerKind::Independent);
     }
 
+    /// Recordings older than any of the options added since the first release load, with each
+    /// missing option at the value it had then.
     #[test]
-    fn every_rule_names_a_field_once() {
-        let mut names: Vec<&str> = RULES.iter().map(|r| r.name).collect();
+    fn recordings_without_the_later_options_load() {
+        let first = toml::toml! {
+            technique = "vcm"
+            seed = 0
+            beta = 1.0
+            roulette = 5
+            no_vc = false
+            no_vm = true
+        };
+        let old: RenderOptions = toml::Value::Table(first).try_into().unwrap();
+        assert_eq!(
+            old,
+            RenderOptions {
+                technique: Technique::Vcm,
+                beta: 1.0,
+                roulette: 5,
+                no_vm: true,
+                ..RenderOptions::RECORDED
+            }
+        );
+    }
+
+    /// Every field of [`RenderOptions`] has one row: the serialised options name each field
+    /// once, and the table names the same fields.
+    #[test]
+    fn every_field_has_one_row() {
+        let mut names: Vec<&str> = OPTIONS.iter().map(|r| r.name).collect();
         names.sort_unstable();
         names.dedup();
-        assert_eq!(names.len(), RULES.len());
+        assert_eq!(names.len(), OPTIONS.len());
+        let fields = match toml::Value::try_from(RenderOptions {
+            camera: Some("front".into()),
+            resolution: Some([1, 1]),
+            radius: Some(1.0),
+            alpha: Some(1.0),
+            max_path_length: Some(1),
+            strategy: Some([1, 1]),
+            density_mis: Some(DensityMis::Plus),
+            light_paths: Some(1),
+            ..RenderOptions::DEFAULT
+        }) {
+            Ok(toml::Value::Table(t)) => t,
+            other => panic!("{other:?}"),
+        };
+        let mut fields: Vec<&str> = fields.keys().map(String::as_str).collect();
+        fields.sort_unstable();
+        assert_eq!(fields, names);
+    }
+
+    #[test]
+    fn library_messages_quote_names_and_front_ends_respell_them() {
+        let e = OptionError::NotTaken {
+            option: OptionName("upg_packet"),
+            technique: Technique::Vcm,
+            takes: vec![Technique::Upg, Technique::UpgCamera],
+        };
+        let text = e.to_string();
+        assert_eq!(
+            text,
+            "`upg_packet` does not apply to vcm (only to upg, upg-camera)"
+        );
+        let flags = |name: &str| (name == "upg_packet").then(|| OptionName("upg_packet").flag());
+        assert_eq!(
+            respell("`embree` `upg_packet`, `not a name` `", flags),
+            "`embree` --upg-packet, `not a name` `"
+        );
+        assert_eq!(OptionName("upg_packet").flag(), "--upg-packet");
     }
 
     #[test]

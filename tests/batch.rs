@@ -490,3 +490,115 @@ fn bad_plans_exit_2_and_name_the_entry() {
         assert!(!dir.path().join("out").exists(), "{group}: wrote output");
     }
 }
+
+/// Options beyond radius and beta reach the command lines `--jobs` prints with their values:
+/// a plan with 002's weights, the sampler, the density map's iterations, the light sub-paths,
+/// the shortest path and merge-only techniques, run through GNU parallel, renders the pixels
+/// the same plan renders in-process, each cell under a name of its own.
+#[test]
+fn every_option_reaches_the_job_lines_and_renders_the_in_process_pixels() {
+    if !have("parallel") {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let plan_text = |output: &str| {
+        format!(
+            r#"output = "{output}"
+resolution = [16, 12]
+iterations = 4
+[[scene]]
+file = "{}"
+cameras = ["front"]
+[[group]]
+techniques = ["vcm"]
+radius = 0.05
+density_mis = "vcm*"
+sampler = "independent"
+density_map_iterations = 3
+light_paths = 100
+min_path_length = 2
+[[group]]
+techniques = ["vcm"]
+radius = 0.05
+density_mis = "vcm+"
+[[group]]
+techniques = ["vcm", "upg"]
+radius = 0.05
+no_vc = true
+"#,
+            scene("cornell-box")
+        )
+    };
+    let jobs_plan = dir.path().join("jobs.toml");
+    let here_plan = dir.path().join("here.toml");
+    std::fs::write(&jobs_plan, plan_text("jobs")).unwrap();
+    std::fs::write(&here_plan, plan_text("here")).unwrap();
+
+    let jobs = run(&["batch", jobs_plan.to_str().unwrap(), "--jobs"]);
+    let lines: Vec<&str> = jobs.lines().collect();
+    assert_eq!(lines.len(), 4, "{jobs}");
+    assert!(
+        lines[0].contains(" --technique vcm ")
+            && lines[0].contains(" --min-path-length 2 ")
+            && lines[0].contains(" --light-paths 100 ")
+            && lines[0].contains(" --sampler independent ")
+            && lines[0].contains(" --density-mis 'vcm*' ")
+            && lines[0].contains(" --density-map-iterations 3 "),
+        "{jobs}"
+    );
+    assert!(lines[1].contains(" --density-mis vcm+ "), "{jobs}");
+    assert!(lines[2].contains(" --no-vc ") && lines[3].contains(" --no-vc "));
+    let mut child = Command::new("parallel")
+        .args(["--will-cite", "-j", "2", "--halt", "now,fail=1"])
+        .current_dir(dir.path())
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(jobs.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "parallel: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert_eq!(run(&["batch", jobs_plan.to_str().unwrap(), "--jobs"]), "");
+
+    run(&["batch", here_plan.to_str().unwrap()]);
+    let names = |folder: &str| {
+        let mut names: Vec<String> = std::fs::read_dir(dir.path().join(folder))
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".exr"))
+            .collect();
+        names.sort();
+        names
+    };
+    let expected = [
+        "cornell-box.front.upg.no-vc.r0_05.exr",
+        "cornell-box.front.vcm.density-misvcmplus.r0_05.exr",
+        "cornell-box.front.vcm.min-path-length2.light-paths100.samplerindependent.density-misvcmstar.density-map-iterations3.r0_05.exr",
+        "cornell-box.front.vcm.no-vc.r0_05.exr",
+    ];
+    assert_eq!(names("jobs"), expected);
+    assert_eq!(names("here"), expected);
+    for name in expected {
+        let (jobs, here) = (
+            dir.path().join("jobs").join(name),
+            dir.path().join("here").join(name),
+        );
+        assert_eq!(
+            tools::metadata(&jobs).unwrap().options,
+            tools::metadata(&here).unwrap().options,
+            "{name}"
+        );
+        assert_eq!(pixels(&jobs), pixels(&here), "{name}");
+    }
+}

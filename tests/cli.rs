@@ -375,3 +375,62 @@ fn stale_temporaries_go_and_unknown_materials_are_named() {
         "{stderr}"
     );
 }
+
+/// Every technique with every option it takes set to a value other than its default: the
+/// command line its options write ([`RenderOptions::to_args`], what `batch --jobs` prints)
+/// renders, through the binary's own arguments, an image whose recorded options are the same.
+#[test]
+fn options_written_as_arguments_come_back_from_the_image() {
+    use vmerge::options::{DensityMis, SamplerKind, Technique, OPTIONS};
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml");
+    for technique in Technique::ALL {
+        let all = RenderOptions {
+            technique,
+            seed: 7,
+            camera: Some("floor".into()),
+            resolution: Some([8, 6]),
+            beta: 1.5,
+            radius: Some(0.07),
+            alpha: Some(0.5),
+            max_path_length: Some(6),
+            roulette: 2,
+            no_vc: true,
+            no_vm: technique != Technique::Vcm,
+            strategy: Some([1, 2]),
+            unweighted: true,
+            upg_packet: 8,
+            upg_max_trials: 50,
+            density_mis: Some(DensityMis::Star),
+            density_map_iterations: 2,
+            no_shading_normals: true,
+            light_paths: Some(20),
+            min_path_length: 2,
+            sampler: SamplerKind::Independent,
+        };
+        // What the technique does not take keeps its default.
+        let mut options = RenderOptions {
+            technique,
+            ..RenderOptions::DEFAULT
+        };
+        for spec in OPTIONS.iter().filter(|s| (s.takes)(technique)) {
+            if let Some(value) = (spec.write)(&all) {
+                spec.read(&mut options, &value).unwrap();
+            }
+        }
+        assert_eq!(options.validate(), Ok(()), "{options:?}");
+        let out = tempfile::tempdir().unwrap();
+        let exr = out.path().join("out.exr");
+        let args = options.to_args();
+        let result = vmerge()
+            .args(["render", "-n", "1", "--accel", "bvh", "--no-png", "-o"])
+            .arg(&exr)
+            .args(&args)
+            .arg(&scene)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&result.stderr);
+        assert_eq!(result.status.code(), Some(0), "{args:?}: {stderr}");
+        let recorded = vmerge::tools::metadata(&exr).unwrap().options;
+        assert_eq!(recorded, options, "{args:?}");
+    }
+}

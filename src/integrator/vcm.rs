@@ -62,13 +62,9 @@ struct Modes {
 
 impl Modes {
     fn for_options(o: &RenderOptions) -> Self {
-        let (vc, vm, ppm, light_trace) = match o.technique {
-            Technique::Lt => (false, false, false, true),
-            Technique::Ppm => (false, true, true, false),
-            Technique::Bpm => (false, true, false, false),
-            Technique::Upg | Technique::UpgCamera => (!o.no_vc, true, false, false),
-            _ => (!o.no_vc, !o.no_vm, false, false),
-        };
+        let (vc, vm) = (o.connects(), o.merges());
+        let ppm = o.technique == Technique::Ppm;
+        let light_trace = o.technique == Technique::Lt;
         let gather = match o.technique {
             Technique::Upg => Gather::UpgLight,
             Technique::UpgCamera => Gather::UpgCamera,

@@ -3,7 +3,7 @@
 
 use super::BatchError;
 use crate::film::{Metadata, TraceWindow};
-use crate::options::{RenderOptions, RULES};
+use crate::options::RenderOptions;
 use crate::tools::metadata;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -139,24 +139,6 @@ pub enum Action {
     Merge(Vec<PathBuf>),
 }
 
-/// The value of option `name` as a command-line argument; `None` for a flag without one.
-pub fn option_value(o: &RenderOptions, name: &str) -> Option<String> {
-    match name {
-        "resolution" => o.resolution.map(|[w, h]| format!("{w}x{h}")),
-        "beta" => Some(o.beta.to_string()),
-        "radius" => o.radius.map(|r| r.to_string()),
-        "alpha" => o.alpha.map(|a| a.to_string()),
-        "max_path_length" => o.max_path_length.map(|n| n.to_string()),
-        "roulette" => Some(o.roulette.to_string()),
-        "strategy" => o.strategy.map(|[s, t]| format!("{s},{t}")),
-        "upg_packet" => Some(o.upg_packet.to_string()),
-        "upg_max_trials" => Some(o.upg_max_trials.to_string()),
-        "light_paths" => o.light_paths.map(|n| n.to_string()),
-        "min_path_length" => Some(o.min_path_length.to_string()),
-        _ => None,
-    }
-}
-
 /// Same file, by canonical path where both exist, else by name.
 fn same_file(a: &Path, b: &Path) -> bool {
     match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
@@ -287,20 +269,8 @@ impl Cell {
                 return args;
             }
             Action::Render => {
-                let o = &self.options;
                 args.extend(["render".into(), path(&self.scene_file)]);
-                args.extend(["--technique".into(), o.technique.name().into()]);
-                args.extend(["--seed".into(), o.seed.to_string()]);
-                if let Some(camera) = &o.camera {
-                    args.extend(["--camera".into(), camera.clone()]);
-                }
-                for rule in RULES {
-                    if !(rule.is_set)(o) {
-                        continue;
-                    }
-                    args.push(format!("--{}", rule.name.replace('_', "-")));
-                    args.extend(option_value(o, rule.name));
-                }
+                args.extend(self.options.to_args());
                 args.extend(self.budget.flags());
                 args.extend(["--output".into(), path(&self.output)]);
                 if let Some(reference) = self.reference_file(cells) {

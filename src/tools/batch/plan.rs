@@ -2,7 +2,7 @@
 //!
 //! Keys, at the top level (defaults for everything below), in `[[scene]]` and in `[[group]]`:
 //! `budget = "20m"` or `iterations = N` (a cell's budget), `seeds = [..]`, `resolution`,
-//! `traces = ["XxYxW", ..]`, and any option of [`RULES`] by its field name (`min_path_length =
+//! `traces = ["XxYxW", ..]`, and any option of [`OPTIONS`] by its field name (`min_path_length =
 //! 3`, `no_vc = true`, ...); a lower level overrides a higher one. Only at the top: `output`,
 //! `threads` (per cell), `snapshot`, `metric`. A scene: `file`, `name`, `cameras`,
 //! `reference`. A group: `techniques`, `radius` (a number, a list or a sweep `{ from, to,
@@ -13,7 +13,7 @@
 use super::cell::{Budget, Cell, CellKind, ReferenceSource};
 use super::BatchError;
 use crate::film::TraceWindow;
-use crate::options::{RenderOptions, Technique, RULES};
+use crate::options::{Form, RenderOptions, Technique, OPTIONS};
 use crate::tools::Metric;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -79,11 +79,20 @@ const GROUP_KEYS: &[&str] = &[
 ];
 const REFERENCE_KEYS: &[&str] = &["technique", "budget", "iterations", "parts", "seed"];
 
-/// Options set by a level of the plan; `resolution`, `beta` and `radius` have their own keys.
+/// Options a plan gives the cells of a level, by their own keys or by expansion:
+/// `techniques`, `seeds`, `cameras`, `resolution`, `beta`, `radius`.
+const EXPANDED: &[&str] = &[
+    "technique",
+    "seed",
+    "camera",
+    "resolution",
+    "beta",
+    "radius",
+];
+
+/// Options set by a level of the plan under their field names.
 fn is_option(key: &str) -> bool {
-    RULES
-        .iter()
-        .any(|r| r.name == key && !matches!(key, "resolution" | "beta" | "radius"))
+    OPTIONS.iter().any(|r| r.name == key) && !EXPANDED.contains(&key)
 }
 
 /// Reads the parts of a plan file that name one entry, for messages.
@@ -757,20 +766,35 @@ fn number_part(x: f32) -> String {
     x.to_string().replace('.', "_").replace('-', "m")
 }
 
-/// The technique and every option that differs from its default but the radius, seed, camera
-/// and resolution: `vcm`, `upg.no-vc.min-path-length3`, `vcm.beta1`. Column names of the
-/// report's tables and the middle of cell names.
+/// The technique and every other option that differs from its default, but those a cell's name
+/// carries on its own (radius, seed, camera) and the resolution: `vcm`,
+/// `upg.no-vc.min-path-length3`, `vcm.beta1`, `vcm.density-misvcmstar`. Column names of the
+/// report's tables and the middle of cell names: every value that changes the image gives
+/// another name.
 pub fn variant_name(o: &RenderOptions) -> String {
     let mut name = o.technique.name().to_string();
-    for rule in RULES {
-        if matches!(rule.name, "radius" | "resolution") || !(rule.is_set)(o) {
+    for spec in OPTIONS {
+        if matches!(
+            spec.name,
+            "technique" | "seed" | "camera" | "radius" | "resolution"
+        ) || !spec.is_set(o)
+        {
             continue;
         }
-        let flag = rule.name.replace('_', "-");
-        match super::cell::option_value(o, rule.name) {
-            Some(value) => name.push_str(&format!(".{flag}{}", value.replace(['.', ','], "_"))),
-            None => name.push_str(&format!(".{flag}")),
+        name.push('.');
+        name.push_str(&spec.name.replace('_', "-"));
+        if let (Form::Value { .. }, Some(value)) = (spec.form, (spec.write)(o)) {
+            name.push_str(&value_part(&value));
         }
     }
     name
+}
+
+/// A value in a file name: `0.5` as `0_5`, `1,2` as `1_2`, `vcm*` as `vcmstar`, `vcm+` as
+/// `vcmplus`.
+fn value_part(value: &str) -> String {
+    value
+        .replace(['.', ','], "_")
+        .replace('*', "star")
+        .replace('+', "plus")
 }
