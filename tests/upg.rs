@@ -7,8 +7,10 @@ mod common;
 use common::{assert_agree, floor_view, load, options, render_stats, standardised_rms};
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext};
+use vmerge::integrator::upg::UpgCounters;
+use vmerge::integrator::RenderContext;
 use vmerge::options::{RenderOptions, Technique};
+use vmerge::render::create_integrator;
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
 const UPG: [Technique; 2] = [Technique::Upg, Technique::UpgCamera];
@@ -133,11 +135,12 @@ fn load_with(name: &str, accel: AccelKind) -> Scene {
 fn packet_rays(scene: &Scene, o: &RenderOptions) -> u64 {
     let [w, h] = o.resolution.expect("tests set a resolution");
     let camera = Camera::new(scene.camera(o.camera.as_deref()).unwrap(), w, h);
-    let mut integrator = integrator::create(RenderContext {
+    let mut integrator = create_integrator(RenderContext {
         scene,
         camera,
         options: o,
     });
     let mut frame = vec![Rgb::BLACK; (w * h) as usize];
-    integrator.render_iteration(0, &mut frame).upg.packet_rays
+    integrator.render_iteration(0, &mut frame);
+    UpgCounters::from_named(&integrator.counters()).map_or(0, |upg| upg.packet_rays)
 }
