@@ -6,7 +6,6 @@ use crate::files::FileError;
 use crate::film::{exr, png, ErrorTracker, Film, FilmError, Metadata, TraceWindow};
 use crate::integrator::bpt::Bpt;
 use crate::integrator::pt::PathTracer;
-use crate::integrator::upg::UpgCounters;
 use crate::integrator::vcm::VertexCm;
 use crate::integrator::{Counters, Integrator, RenderContext};
 use crate::memory::MemoryError;
@@ -120,25 +119,6 @@ pub struct Progress {
     /// The technique's own work counts in this run ([`Integrator::counters`]): UPG's merges
     /// and tentative rays, none for the other techniques.
     pub counters: Counters,
-}
-
-impl Progress {
-    /// UPG's rates for the metadata, when it merged at all.
-    pub fn upg_statistics(&self) -> Option<Vec<(String, String)>> {
-        let seconds = self.elapsed.as_secs_f64().max(1e-9);
-        UpgCounters::from_named(&self.counters).map(|upg| {
-            vec![
-                (
-                    "upg_merges_per_second".into(),
-                    format!("{:.0}", upg.merges as f64 / seconds),
-                ),
-                (
-                    "upg_tentative_rays_per_second".into(),
-                    format!("{:.0}", upg.tentative_rays as f64 / seconds),
-                ),
-            ]
-        })
-    }
 }
 
 /// The state of a render: its film, its metadata and what it needs to go on.
@@ -269,16 +249,11 @@ impl RenderJob<'_> {
             if let Some(observer) = observer.as_deref_mut() {
                 observer.after_iteration(&self.film, &self.metadata, &now);
             }
-            let statistics = |progress: &Progress| {
-                let mut all = integrator.statistics();
-                all.extend(progress.upg_statistics().unwrap_or_default());
-                all
-            };
             if self
                 .snapshot_every
                 .is_some_and(|every| last_snapshot.elapsed() >= every)
             {
-                self.metadata.statistics = statistics(&now);
+                self.metadata.statistics = integrator.statistics(now.elapsed);
                 match self.write() {
                     Ok(()) => last_good = Some(self.output.clone()),
                     Err(e) => eprintln!(
@@ -293,10 +268,9 @@ impl RenderJob<'_> {
         if iterations_here > 0 && recorded != Some(self.film.iterations) {
             record_error(&self.tracker, &self.film, &mut self.metadata);
         }
-        self.metadata.statistics = integrator.statistics();
-        if let Some(rates) = progress.as_ref().and_then(Progress::upg_statistics) {
-            self.metadata.statistics.extend(rates);
-        }
+        // No iteration in this run: no work to give a rate of.
+        let elapsed = progress.as_ref().map_or(Duration::ZERO, |p| p.elapsed);
+        self.metadata.statistics = integrator.statistics(elapsed);
         self.write_final(last_good)
     }
 

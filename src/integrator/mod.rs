@@ -9,6 +9,7 @@
 use crate::color::Rgb;
 use crate::options::RenderOptions;
 use crate::scene::{Camera, Scene};
+use std::time::Duration;
 
 pub mod bpt;
 pub mod connection;
@@ -66,8 +67,9 @@ impl RenderContext<'_> {
 pub trait Integrator: Send + Sync {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats;
 
-    /// Technique-specific statistics for the metadata.
-    fn statistics(&self) -> Vec<(String, String)> {
+    /// Technique-specific statistics for the metadata; the time since the run began gives
+    /// their rates.
+    fn statistics(&self, _elapsed: Duration) -> Vec<(String, String)> {
         Vec::new()
     }
 

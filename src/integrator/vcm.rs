@@ -39,6 +39,7 @@ use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
 use rayon::prelude::*;
+use std::time::Duration;
 
 /// Light paths traced by one parallel task. Fixed, so results do not depend on threads.
 const LIGHT_CHUNK: usize = 256;
@@ -870,7 +871,7 @@ impl Integrator for VertexCm<'_> {
         stats
     }
 
-    fn statistics(&self) -> Vec<(String, String)> {
+    fn statistics(&self, elapsed: Duration) -> Vec<(String, String)> {
         let paths = self.light_paths().max(1);
         let mut stats = vec![
             (
@@ -892,6 +893,7 @@ impl Integrator for VertexCm<'_> {
         if let Some(map) = &self.density {
             stats.extend(map.statistics());
         }
+        stats.extend(self.upg.rates(elapsed));
         stats
     }
 

@@ -11,6 +11,7 @@
 use super::mis::{Arrival, VcmVertex, VcmWeights};
 use super::subpath::PendingMis;
 use super::Counters;
+use std::time::Duration;
 
 pub mod acceptance;
 pub mod merge;
@@ -129,6 +130,24 @@ impl UpgCounters {
             capped: get(Self::CAPPED),
         };
         (upg.merges > 0).then_some(upg)
+    }
+
+    /// Metadata entries of the rates over `elapsed`; none unless UPG merged at all.
+    pub fn rates(&self, elapsed: Duration) -> Vec<(String, String)> {
+        if self.merges == 0 {
+            return Vec::new();
+        }
+        let seconds = elapsed.as_secs_f64().max(1e-9);
+        vec![
+            (
+                "upg_merges_per_second".into(),
+                format!("{:.0}", self.merges as f64 / seconds),
+            ),
+            (
+                "upg_tentative_rays_per_second".into(),
+                format!("{:.0}", self.tentative_rays as f64 / seconds),
+            ),
+        ]
     }
 
     /// Metadata entries: the thesis reports about 2.81 trials per merge (000 sec. 2.4.3).
