@@ -23,7 +23,7 @@ pub trait PendingMis: Copy + Send + Sync {
 }
 
 /// A stored light sub-path vertex: everything a connection or a merge needs.
-#[derive(Clone, Copy, Debug)]
+#[derive(Copy, Debug)]
 pub struct LightVertex<P> {
     pub position: Vec3,
     /// Geometric normal.
@@ -56,6 +56,14 @@ pub struct MergeVertex {
     pub throughput: Rgb,
     pub path_length: u32,
     pub mis: VcmVertex,
+}
+
+// A bitwise copy: the derived `Clone` of a generic type clones field by field, which filling
+// the light paths' storage (`LightPaths::refill`) would pay for every vertex.
+impl<P: Copy> Clone for LightVertex<P> {
+    fn clone(&self) -> Self {
+        *self
+    }
 }
 
 impl<P> From<&LightVertex<P>> for MergeVertex {
