@@ -489,14 +489,14 @@ fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> 
         if let Some(rmse) = p.rmse {
             msg.push_str(&format!(", rmse {rmse:.4e}"));
         }
-        if p.upg.merges > 0 {
+        if let Some(upg) = vmerge::integrator::upg::UpgCounters::from_named(&p.counters) {
             let seconds = p.elapsed.as_secs_f64().max(1e-9);
             msg.push_str(&format!(
                 ", upg {:.2} trials/merge, {:.2} Mmerges/s, {:.2} Mtentative rays/s, {} capped",
-                p.upg.trials as f64 / p.upg.merges as f64,
-                p.upg.merges as f64 / seconds / 1e6,
-                p.upg.tentative_rays as f64 / seconds / 1e6,
-                p.upg.capped
+                upg.trials as f64 / upg.merges as f64,
+                upg.merges as f64 / seconds / 1e6,
+                upg.tentative_rays as f64 / seconds / 1e6,
+                upg.capped
             ));
         }
         bar.set_message(msg);
