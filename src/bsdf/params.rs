@@ -157,15 +157,52 @@ pub struct EnergyExcess {
     pub conserving: super::MaterialKind,
 }
 
-/// Reads the parameters of one BSDF type: each value checked against its spec, absent ones
-/// at their defaults.
-pub(super) struct ParamReader<'a> {
-    pub type_name: &'static str,
-    pub specs: &'static [ParamSpec],
-    pub params: &'a Params,
+/// A colour parameter in `[0, inf)`.
+pub(super) const fn color(name: &'static str, default: f32) -> ParamSpec {
+    ParamSpec {
+        name,
+        kind: ParamKind::Color,
+        default: ParamValue::Color(Rgb::splat(default)),
+        range: ParamRange::NonNegative,
+    }
 }
 
-impl ParamReader<'_> {
+/// A number parameter.
+pub(super) const fn number(name: &'static str, default: f32, range: ParamRange) -> ParamSpec {
+    ParamSpec {
+        name,
+        kind: ParamKind::Number,
+        default: ParamValue::Number(default),
+        range,
+    }
+}
+
+/// Each channel above 1 set to 1.
+pub(super) fn clamp_to_one(c: Rgb) -> Rgb {
+    Rgb::new(c.r.min(1.0), c.g.min(1.0), c.b.min(1.0))
+}
+
+/// The parameters of one BSDF type as it reads them: each value checked against its spec,
+/// absent ones at their defaults.
+pub struct ParamReader<'a> {
+    type_name: &'static str,
+    specs: &'static [ParamSpec],
+    params: &'a Params,
+}
+
+impl<'a> ParamReader<'a> {
+    pub(super) fn new(
+        type_name: &'static str,
+        specs: &'static [ParamSpec],
+        params: &'a Params,
+    ) -> Self {
+        ParamReader {
+            type_name,
+            specs,
+            params,
+        }
+    }
+
     fn value(&self, name: &str) -> Result<ParamValue, BsdfError> {
         let spec = self
             .specs
