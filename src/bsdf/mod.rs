@@ -54,7 +54,6 @@ registry! {
     phong::Phong { kd: Rgb, ks: Rgb, exponent: f32 },
     mirror::Mirror { ks: Rgb },
     glass::Glass { ior: f32 },
-    black::Black {},
 }
 
 /// A named material: how it scatters and what it emits (radiance, one-sided, on the side the
