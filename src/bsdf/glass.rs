@@ -111,11 +111,13 @@ impl Bxdf for Glass {
         false
     }
 
+    #[inline]
     fn eval(&self, _: Vec3, _: Vec3, _: TransportMode) -> BsdfEval {
         BsdfEval::ZERO
     }
 
     /// `wo` local to the outward normal (negative z when leaving the glass).
+    #[inline]
     fn sample(&self, wo: Vec3, u: [f32; 3], mode: TransportMode) -> Option<BsdfSample> {
         let ior = self.ior;
         let reflectance = fresnel_dielectric(wo.z, ior);
@@ -152,6 +154,7 @@ impl Bxdf for Glass {
         Rgb::WHITE
     }
 
+    #[inline]
     fn lobes(&self, _: Vec3, _: &Frame) -> Lobes {
         Lobes::NONE
     }

@@ -54,6 +54,7 @@ impl Bxdf for Lambert {
         false
     }
 
+    #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3, _: TransportMode) -> BsdfEval {
         if wi.z <= 0.0 {
             return BsdfEval::ZERO;
@@ -65,6 +66,7 @@ impl Bxdf for Lambert {
         }
     }
 
+    #[inline]
     fn sample(&self, wo: Vec3, u: [f32; 3], mode: TransportMode) -> Option<BsdfSample> {
         let wi = cosine_hemisphere([u[1], u[2]]);
         let e = self.eval(wo, wi, mode);
@@ -81,6 +83,7 @@ impl Bxdf for Lambert {
         self.kd
     }
 
+    #[inline]
     fn lobes(&self, _: Vec3, frame: &Frame) -> Lobes {
         let mut lobes = Lobes::NONE;
         lobes.push(Lobe {

@@ -52,10 +52,12 @@ impl Bxdf for Mirror {
         true
     }
 
+    #[inline]
     fn eval(&self, _: Vec3, _: Vec3, _: TransportMode) -> BsdfEval {
         BsdfEval::ZERO
     }
 
+    #[inline]
     fn sample(&self, wo: Vec3, _: [f32; 3], _: TransportMode) -> Option<BsdfSample> {
         let wi = reflect_local(wo);
         // Delta lobe chosen with probability 1: f * |cos| / pdf = ks.
@@ -72,6 +74,7 @@ impl Bxdf for Mirror {
         self.ks
     }
 
+    #[inline]
     fn lobes(&self, _: Vec3, _: &Frame) -> Lobes {
         Lobes::NONE
     }

@@ -37,6 +37,7 @@ struct Prepared {
 }
 
 impl Phong {
+    #[inline]
     fn prepare(&self) -> Prepared {
         let Phong { kd, ks, exponent } = *self;
         let (d, s) = (kd.average(), ks.average());
@@ -60,6 +61,7 @@ impl Phong {
 }
 
 impl Prepared {
+    #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3) -> BsdfEval {
         if wi.z <= 0.0 {
             return BsdfEval::ZERO;
@@ -151,10 +153,12 @@ impl Bxdf for Phong {
         false
     }
 
+    #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3, _: TransportMode) -> BsdfEval {
         self.prepare().eval(wo, wi)
     }
 
+    #[inline]
     fn sample(&self, wo: Vec3, u: [f32; 3], _: TransportMode) -> Option<BsdfSample> {
         let phong = self.prepare();
         let wi = if u[0] < phong.diffuse_probability {
@@ -176,6 +180,7 @@ impl Bxdf for Phong {
         self.kd + self.ks
     }
 
+    #[inline]
     fn lobes(&self, wo: Vec3, frame: &Frame) -> Lobes {
         let phong = self.prepare();
         let pd = phong.diffuse_probability;

@@ -70,24 +70,28 @@ macro_rules! registry {
         }
 
         impl $crate::bsdf::Bxdf for MaterialKind {
+            #[inline]
             fn params(&self) -> $crate::bsdf::Params {
                 match *self {
                     $(MaterialKind::$ty { $($field),* } => $ty { $($field),* }.params(),)*
                 }
             }
 
+            #[inline]
             fn energy_excess(&self) -> Option<$crate::bsdf::EnergyExcess> {
                 match *self {
                     $(MaterialKind::$ty { $($field),* } => $ty { $($field),* }.energy_excess(),)*
                 }
             }
 
+            #[inline]
             fn albedo(&self) -> $crate::bsdf::Albedo {
                 match *self {
                     $(MaterialKind::$ty { $($field),* } => $ty { $($field),* }.albedo(),)*
                 }
             }
 
+            #[inline]
             fn with_albedo(&self, albedo: $crate::bsdf::Albedo) -> Self {
                 match *self {
                     $(MaterialKind::$ty { $($field),* } => {
@@ -96,18 +100,21 @@ macro_rules! registry {
                 }
             }
 
+            #[inline]
             fn kd_limit(&self, ks: $crate::color::Rgb) -> $crate::color::Rgb {
                 match *self {
                     $(MaterialKind::$ty { $($field),* } => $ty { $($field),* }.kd_limit(ks),)*
                 }
             }
 
+            #[inline]
             fn is_delta(&self) -> bool {
                 match *self {
                     $(MaterialKind::$ty { $($field),* } => $ty { $($field),* }.is_delta(),)*
                 }
             }
 
+            #[inline]
             fn two_sided(&self) -> bool {
                 match *self {
                     $(MaterialKind::$ty { $($field),* } => $ty { $($field),* }.two_sided(),)*
@@ -138,6 +145,7 @@ macro_rules! registry {
                 }
             }
 
+            #[inline]
             fn continuation_albedo(&self) -> $crate::color::Rgb {
                 match *self {
                     $(MaterialKind::$ty { $($field),* } => {
@@ -146,6 +154,7 @@ macro_rules! registry {
                 }
             }
 
+            #[inline]
             fn lobes(&self, wo: glam::Vec3, frame: &$crate::frame::Frame) -> $crate::bsdf::Lobes {
                 match *self {
                     $(MaterialKind::$ty { $($field),* } => $ty { $($field),* }.lobes(wo, frame),)*
