@@ -36,8 +36,7 @@ pub trait Bxdf {
         Self: Sized;
 
     /// The largest kd a texture may give where ks is `ks`, for energy conservation.
-    fn kd_limit(&self, ks: Rgb) -> Rgb {
-        let _ = ks;
+    fn kd_limit(&self, _ks: Rgb) -> Rgb {
         Rgb::WHITE
     }
 

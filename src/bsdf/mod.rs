@@ -5,6 +5,13 @@
 //! (of sampling `wi` from `wo`) and the reverse pdf (of sampling `wo` from `wi`), all per solid
 //! angle: what the bidirectional integrators' MIS needs (001 sec. 3).
 //!
+//! Each BSDF type lives in its own file as a struct of its parameters implementing
+//! [`BxdfType`] (its scene-file name and parameters) and [`Bxdf`] (value, pdfs, sampling and
+//! sampling lobes in the local shading frame), and is registered by one line of the
+//! `registry!` below, which declares its [`MaterialKind`] variant and dispatches to it. `Bsdf`
+//! adds, once for every type, the shading frame, the shading-normal factor and world
+//! directions. Scene front-ends build kinds by type name and [`Params`], never by variant.
+//!
 //! Conventions:
 //! - `f` never includes the cosine; callers multiply by `|cos(n, wi)|`.
 //! - A delta (specular) lobe reports `pdf_w` = the discrete probability of choosing it, and `f`
@@ -241,7 +248,8 @@ impl<'a> Bsdf<'a> {
 
     /// The sampling mixture: [`Bsdf::sample`] picks a component by its weight and draws from
     /// its density; a direction below the surface (`frame().z`) is rejected (`None`). Empty
-    /// for mirror and glass.
+    /// for mirror and glass; [`Lobes::UNBOUNDED`] for a type whose lobes have no closed-form
+    /// bound.
     pub fn lobes(&self) -> Lobes {
         self.bxdf.lobes(self.wo_local, &self.frame)
     }
