@@ -3,12 +3,14 @@
 //! Everything is validated before anything is built: each problem is one [`SceneError`] naming
 //! the file and the entry. OBJ `vn` normals become shading normals (unless turned off per mesh
 //! or for the whole load), `vt` texture coordinates; MTL `map_Kd` / `map_Ks` and the tables'
-//! `texture` / `ks_texture` name image textures, decoded once per file.
+//! `texture` / `ks_texture` name image textures. Materials, images, the scene hash and the
+//! warnings go through the [`Builder`] the pbrt importer uses too.
 
+use super::builder::{Builder, Contents, Origin};
 use super::wavefront;
 use super::{
     CameraDesc, FovAxis, MaterialTextures, MeshShading, RenderDefaults, Scene, SceneError,
-    SceneParts, MAX_COORDINATE,
+    SceneParts, Warning, MAX_COORDINATE,
 };
 use crate::accel::{AccelKind, Geometry, Sphere};
 use crate::bsdf::{Material, MaterialKind};
@@ -16,14 +18,10 @@ use crate::color::Rgb;
 use crate::files::{self, Kind};
 use crate::light::Light;
 use crate::light::{EnvMapDesc, SceneBounds, SkyDesc};
-use crate::options::OptionName;
-use crate::texture::{self, Texture};
 use glam::{Mat3, Vec2, Vec3};
 use serde::Deserialize;
-use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// The camera's vertical field of view, in degrees: narrower makes the image plane so far
 /// that rays lose their direction in f32, wider so near that pixels lose their size.
@@ -181,22 +179,16 @@ pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, Scen
     let mut loader = Loader {
         path: path.to_path_buf(),
         dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
-        lenient: options.lenient,
         shading_normals: options.shading_normals,
-        hasher: Sha256::new(),
-        materials: Vec::new(),
-        material_textures: Vec::new(),
-        textures: Vec::new(),
-        texture_files: HashMap::new(),
+        builder: Builder::new(path, options.lenient),
         shading: MeshShading::default(),
         by_name: HashMap::new(),
         geometry: Geometry::default(),
         triangle_materials: Vec::new(),
         sphere_materials: Vec::new(),
         dropped_triangles: 0,
-        inputs: vec![path.to_path_buf()],
     };
-    loader.hasher.update(text.as_bytes());
+    loader.builder.input(path, text.as_bytes());
     loader.build(file)
 }
 
@@ -255,22 +247,14 @@ fn check_array_lengths(path: &Path, at: &str, table: &toml::Table) -> Result<(),
 struct Loader {
     path: PathBuf,
     dir: PathBuf,
-    lenient: bool,
     shading_normals: bool,
-    hasher: Sha256,
-    materials: Vec<Material>,
-    material_textures: Vec<MaterialTextures>,
-    textures: Vec<Arc<Texture>>,
-    /// Index in `textures` of each file read so far.
-    texture_files: HashMap<PathBuf, u32>,
+    builder: Builder,
     shading: MeshShading,
     by_name: HashMap<String, u32>,
     geometry: Geometry,
     triangle_materials: Vec<u32>,
     sphere_materials: Vec<u32>,
     dropped_triangles: usize,
-    /// Every file read, for the check that an output overwrites none of them.
-    inputs: Vec<PathBuf>,
 }
 
 impl Loader {
@@ -353,8 +337,13 @@ impl Loader {
         // the same name are overridden by them.
         for (name, table) in &file.material {
             let material = self.material_from_table(name, table, None)?;
-            let index = self.add_material(material);
             let entry = format!("material.{name}");
+            let origin = Origin {
+                file: self.path.clone(),
+                line: None,
+                entry: entry.clone(),
+            };
+            let index = self.add_material(&origin, material)?;
             let dir = self.dir.clone();
             let path = self.path.clone();
             let kd = self.texture(&path, &format!("{entry}.texture"), &dir, &table.texture)?;
@@ -364,7 +353,8 @@ impl Loader {
                 &dir,
                 &table.ks_texture,
             )?;
-            self.material_textures[index as usize] = MaterialTextures { kd, ks };
+            self.builder
+                .set_textures(index, MaterialTextures { kd, ks });
         }
         for (i, mesh) in file.mesh.iter().enumerate() {
             self.mesh(i, mesh)?;
@@ -384,18 +374,8 @@ impl Loader {
             .enumerate()
             .map(|(i, l)| self.light(i, l))
             .collect::<Result<Vec<_>, _>>()?;
-        if self.dropped_triangles > 0 {
-            eprintln!(
-                "warning: {}: dropped {} degenerate triangles",
-                self.path.display(),
-                self.dropped_triangles
-            );
-        }
-        if self.geometry.triangles.is_empty() && self.geometry.spheres.is_empty() {
-            return Err(SceneError::NoGeometry {
-                file: self.path.clone(),
-            });
-        }
+        self.builder
+            .check_geometry(&self.geometry, self.dropped_triangles)?;
         let triangles = self.geometry.triangles.len();
         for list in [
             &mut self.shading.triangle_normals,
@@ -405,30 +385,18 @@ impl Loader {
                 list.resize(triangles, MeshShading::NONE);
             }
         }
-        let source_hash = self
-            .hasher
-            .finalize()
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect();
-        Ok(SceneParts {
-            source: self.path,
-            source_hash,
+        Ok(self.builder.finish(Contents {
             geometry: self.geometry,
             triangle_materials: self.triangle_materials,
             sphere_materials: self.sphere_materials,
-            materials: self.materials,
-            material_textures: self.material_textures,
-            textures: self.textures,
             shading: self.shading,
-            point_and_directional: lights,
+            lights,
             sky,
             env_map,
             cameras,
             defaults,
             dropped_triangles: self.dropped_triangles,
-            inputs: self.inputs,
-        })
+        }))
     }
 
     fn render_defaults(&self, r: &RenderTable) -> Result<RenderDefaults, SceneError> {
@@ -484,8 +452,9 @@ impl Loader {
         }
         let r = self.vec3("render.sky.rotate_deg", s.rotate_deg.unwrap_or_default())?;
         let path = self.dir.join(image);
-        let (_, image) = self
-            .read_image(&path)
+        let image = self
+            .builder
+            .image(&path)
             .map_err(|message| self.invalid("render.sky.image", message))?;
         Ok((
             None,
@@ -495,22 +464,6 @@ impl Loader {
                 rotation: rotation_deg(r),
             }),
         ))
-    }
-
-    /// Reads an image (once per file: later uses share the decoded copy) and adds its bytes to
-    /// the scene hash; the error names the image file.
-    fn read_image(&mut self, path: &Path) -> Result<(u32, Arc<Texture>), String> {
-        if let Some(&i) = self.texture_files.get(path) {
-            return Ok((i, Arc::clone(&self.textures[i as usize])));
-        }
-        let fail = |e: String| format!("cannot read image {}: {e}", path.display());
-        let bytes = std::fs::read(path).map_err(|e| fail(e.to_string()))?;
-        let texture = Arc::new(texture::read(path).map_err(fail)?);
-        self.hasher.update(&bytes);
-        let index = self.textures.len() as u32;
-        self.texture_files.insert(path.to_path_buf(), index);
-        self.textures.push(Arc::clone(&texture));
-        Ok((index, texture))
     }
 
     /// The texture named by `name` (relative to `dir`) for the entry `entry` of `file`: an error
@@ -526,13 +479,15 @@ impl Loader {
         let Some(name) = name else {
             return Ok(None);
         };
-        match self.read_image(&dir.join(name)) {
-            Ok((index, _)) => Ok(Some(index)),
-            Err(message) if self.lenient => {
-                eprintln!(
-                    "warning: {}: {entry}: {message}; using the material's constant colour",
-                    file.display()
-                );
+        let path = dir.join(name);
+        match self.builder.image(&path) {
+            Ok(image) => Ok(Some(self.builder.texture(&path, &image, Rgb::WHITE))),
+            Err(message) if self.builder.lenient() => {
+                self.builder.warn(Warning::entry(
+                    file,
+                    entry,
+                    format!("{message}; using the material's constant colour"),
+                ));
                 Ok(None)
             }
             Err(message) => Err(SceneError::Invalid {
@@ -581,12 +536,12 @@ impl Loader {
         })
     }
 
-    fn add_material(&mut self, material: Material) -> u32 {
-        let index = self.materials.len() as u32;
-        self.by_name.insert(material.name.clone(), index);
-        self.materials.push(material);
-        self.material_textures.push(MaterialTextures::default());
-        index
+    /// Adds a material through the builder's energy rule, findable by its name.
+    fn add_material(&mut self, origin: &Origin, material: Material) -> Result<u32, SceneError> {
+        let name = material.name.clone();
+        let index = self.builder.material(origin, material)?;
+        self.by_name.insert(name, index);
+        Ok(index)
     }
 
     fn material_index(&self, entry: &str, name: &str) -> Result<u32, SceneError> {
@@ -661,43 +616,10 @@ impl Loader {
                 ))
             }
         };
-        let kind = self.check_energy(&entry, kind)?;
         Ok(Material {
             name: name.to_string(),
             kind,
             emission,
-        })
-    }
-
-    /// Phong conserves energy only for kd + ks <= 1 (000 eq. 3.1).
-    fn check_energy(&self, entry: &str, kind: MaterialKind) -> Result<MaterialKind, SceneError> {
-        let MaterialKind::Phong { kd, ks, exponent } = kind else {
-            return Ok(kind);
-        };
-        let total = (kd + ks).max_component();
-        if total <= 1.0 + 1e-6 {
-            return Ok(kind);
-        }
-        if !self.lenient {
-            return Err(self.invalid(
-                entry,
-                format!(
-                    "kd + ks = {:?} exceeds 1 and would create energy (use {} to clamp)",
-                    (kd + ks).to_array(),
-                    OptionName("lenient")
-                ),
-            ));
-        }
-        eprintln!(
-            "warning: {}: {entry}: kd + ks exceeds 1; scaled down to conserve energy",
-            self.path.display()
-        );
-        let scale = |c: f32, s: f32| if c + s > 1.0 { 1.0 / (c + s) } else { 1.0 };
-        let f = Rgb::new(scale(kd.r, ks.r), scale(kd.g, ks.g), scale(kd.b, ks.b));
-        Ok(MaterialKind::Phong {
-            kd: kd * f,
-            ks: ks * f,
-            exponent,
         })
     }
 
@@ -708,8 +630,7 @@ impl Loader {
         }
         let obj_path = self.dir.join(&mesh.file);
         let bytes = files::read(&obj_path, Kind::Obj)?;
-        self.inputs.push(obj_path.clone());
-        self.hasher.update(&bytes);
+        self.builder.input(&obj_path, &bytes);
         let load_options = tobj::LoadOptions {
             triangulate: true,
             single_index: false,
@@ -717,13 +638,16 @@ impl Loader {
         };
         let obj = wavefront::load_obj(&obj_path, &bytes, &load_options, &entry)?;
         for mtl in &obj.mtl_files {
-            self.hasher.update(&mtl.bytes);
-            self.inputs.push(mtl.path.clone());
-            warn_unknown_mtl_statements(&mtl.path, &String::from_utf8_lossy(&mtl.bytes));
+            self.builder.input(&mtl.path, &mtl.bytes);
+            for w in unknown_mtl_statements(&mtl.path, &String::from_utf8_lossy(&mtl.bytes)) {
+                self.builder.warn(w);
+            }
         }
         if mesh.material.is_none() {
             let scene_materials: Vec<String> = self.by_name.keys().cloned().collect();
-            wavefront::warn_unknown_usemtl(&obj_path, &obj, &scene_materials);
+            for w in wavefront::unknown_usemtl(&obj_path, &obj, &scene_materials) {
+                self.builder.warn(w);
+            }
         }
         // Texture files are named relative to the MTL file that names them.
         let mtl_file = obj
@@ -810,12 +734,14 @@ impl Loader {
                 _ => match default_material {
                     Some(d) => d,
                     None => {
-                        eprintln!(
-                            "warning: {}: object '{}' has no material; using grey lambert (kd 0.8)",
-                            obj_path.display(),
-                            model.name
-                        );
-                        let d = self.default_material();
+                        self.builder.warn(Warning::file(
+                            obj_path,
+                            format!(
+                                "object '{}' has no material; using grey lambert (kd 0.8)",
+                                model.name
+                            ),
+                        ));
+                        let d = self.default_material()?;
                         default_material = Some(d);
                         d
                     }
@@ -899,17 +825,25 @@ impl Loader {
         Ok((normal_base, uv_base))
     }
 
-    fn default_material(&mut self) -> u32 {
+    fn default_material(&mut self) -> Result<u32, SceneError> {
         const NAME: &str = "(default grey)";
         match self.by_name.get(NAME) {
-            Some(&i) => i,
-            None => self.add_material(Material {
-                name: NAME.into(),
-                kind: MaterialKind::Lambert {
-                    kd: Rgb::splat(0.8),
-                },
-                emission: Rgb::BLACK,
-            }),
+            Some(&i) => Ok(i),
+            None => {
+                let origin = Origin {
+                    file: self.path.clone(),
+                    line: None,
+                    entry: NAME.into(),
+                };
+                let material = Material {
+                    name: NAME.into(),
+                    kind: MaterialKind::Lambert {
+                        kd: Rgb::splat(0.8),
+                    },
+                    emission: Rgb::BLACK,
+                };
+                self.add_material(&origin, material)
+            }
         }
     }
 
@@ -956,12 +890,17 @@ impl Loader {
         } else {
             MaterialKind::Lambert { kd }
         };
-        let kind = self.check_energy(&entry, kind)?;
-        let index = self.add_material(Material {
+        let origin = Origin {
+            file: self.path.clone(),
+            line: None,
+            entry,
+        };
+        let material = Material {
             name: m.name.clone(),
             kind,
             emission,
-        });
+        };
+        let index = self.add_material(&origin, material)?;
         let mtl_dir = mtl_file.parent().unwrap_or(Path::new("")).to_path_buf();
         let map = |t: &Option<String>| t.as_ref().map(|s| PathBuf::from(texture_file_name(s)));
         let kd = self.texture(
@@ -976,7 +915,8 @@ impl Loader {
             &mtl_dir,
             &map(&m.specular_texture),
         )?;
-        self.material_textures[index as usize] = MaterialTextures { kd, ks };
+        self.builder
+            .set_textures(index, MaterialTextures { kd, ks });
         Ok(index)
     }
 
@@ -1029,7 +969,8 @@ const KNOWN_MTL: &[&str] = &[
     "newmtl", "Kd", "Ks", "Ke", "Ns", "Ni", "d", "illum", "map_Kd", "map_Ks",
 ];
 
-fn warn_unknown_mtl_statements(path: &Path, text: &str) {
+fn unknown_mtl_statements(path: &Path, text: &str) -> Vec<Warning> {
+    let mut warnings = Vec::new();
     let mut seen = std::collections::BTreeSet::new();
     for line in text.lines() {
         let line = line.trim();
@@ -1040,10 +981,11 @@ fn warn_unknown_mtl_statements(path: &Path, text: &str) {
             continue;
         }
         if seen.insert(word.to_string()) {
-            eprintln!(
-                "warning: {}: skipping unsupported MTL statement '{word}'",
-                path.display()
-            );
+            warnings.push(Warning::file(
+                path,
+                format!("skipping unsupported MTL statement '{word}'"),
+            ));
         }
     }
+    warnings
 }

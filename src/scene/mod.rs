@@ -1,5 +1,7 @@
 //! Scenes: the TOML scene file with its OBJ/MTL meshes and spheres, validated and turned into
-//! geometry for the ray queries, materials, lights and cameras.
+//! geometry for the ray queries, materials, lights and cameras. Both formats (`load` for
+//! TOML, `pbrt`) hand what they read to one `builder`; loading returns its warnings with the
+//! scene and prints nothing.
 
 use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, PACKET};
 use crate::bsdf::{Albedo, Bsdf, Material, MaterialKind, Normals, TransportMode};
@@ -10,15 +12,18 @@ use glam::{Vec2, Vec3};
 use std::path::PathBuf;
 use std::sync::Arc;
 
+mod builder;
 mod camera;
 mod error;
 mod load;
 pub mod pbrt;
+mod warning;
 mod wavefront;
 
 pub use camera::{Camera, CameraDesc, FovAxis};
 pub use error::SceneError;
 pub use load::{load, load_parts, LoadOptions};
+pub use warning::Warning;
 
 /// The largest coordinate a scene may have: f32 positions there are still 1/16 apart, so a
 /// scene of ordinary size keeps its detail, while beyond it areas, distances and the default
@@ -132,6 +137,8 @@ pub struct Scene {
     pub dropped_triangles: usize,
     /// Every file the scene was read from (the scene file first).
     pub inputs: Vec<PathBuf>,
+    /// What the load approximated, skipped or replaced, for the caller to show.
+    pub warnings: Vec<Warning>,
 }
 
 /// Everything but the ray-query structure, from which [`Scene::build`] makes a scene; the
@@ -156,6 +163,7 @@ pub struct SceneParts {
     pub defaults: RenderDefaults,
     pub dropped_triangles: usize,
     pub inputs: Vec<PathBuf>,
+    pub warnings: Vec<Warning>,
 }
 
 impl Scene {
@@ -164,6 +172,7 @@ impl Scene {
     pub fn build(parts: SceneParts, accel_kind: AccelKind) -> Result<Scene, SceneError> {
         let (min, max) = parts.geometry.bounds().ok_or(SceneError::NoGeometry {
             file: parts.source.clone(),
+            dropped: parts.dropped_triangles,
         })?;
         let center = 0.5 * (min + max);
         let radius = (0.5 * (max - min).length()).max(1e-6);
@@ -210,6 +219,7 @@ impl Scene {
             bounding_sphere: (center, radius),
             dropped_triangles: parts.dropped_triangles,
             inputs: parts.inputs,
+            warnings: parts.warnings,
         })
     }
 

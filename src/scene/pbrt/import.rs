@@ -11,11 +11,12 @@ use crate::color::Rgb;
 use crate::files::{self, FileError, Kind};
 use crate::light::{EnvMapDesc, Light, SceneBounds, SkyDesc};
 use crate::options::OptionName;
+use crate::scene::builder::{round3, Builder, Contents, Origin};
 use crate::scene::{
     CameraDesc, FovAxis, MaterialTextures, MeshShading, RenderDefaults, SceneError, SceneParts,
-    MAX_COORDINATE,
+    Warning, MAX_COORDINATE,
 };
-use crate::texture::{self, Texture};
+use crate::texture;
 use glam::{DMat3, DMat4, DVec3, Mat3, Vec2, Vec3};
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
@@ -96,16 +97,14 @@ enum Block {
 
 pub struct Importer {
     lenient: bool,
-    warnings: Vec<String>,
+    /// Materials, images, the scene hash and the warnings.
+    builder: Builder,
     /// Every file read, for locations; the main file first.
     files: Vec<PathBuf>,
-    /// Every file read (scene files, meshes, textures), which an output must not overwrite.
-    inputs: Vec<PathBuf>,
     canonical: Vec<PathBuf>,
     include_stack: Vec<usize>,
     /// Relative paths resolve against the main file's folder, as in pbrt.
     dir: PathBuf,
-    hasher: Sha256,
 
     state: State,
     stack: Vec<(Block, Loc, State)>,
@@ -121,9 +120,8 @@ pub struct Importer {
     shapes: Vec<ShapeRecord>,
     ignored_directives: BTreeSet<String>,
 
-    materials: Vec<Material>,
-    /// Per material: the image its reflectance comes from, the factor on its texels, and the
-    /// Texture directive.
+    /// Per material of the builder: the image its reflectance comes from, the factor on its
+    /// texels, and the Texture directive.
     material_textures: Vec<Option<(PathBuf, Rgb, Loc)>>,
     default_material: Option<u32>,
     emissive: HashMap<(u32, [u32; 3]), u32>,
@@ -135,22 +133,14 @@ pub struct Importer {
     env_image: Option<(PathBuf, f32, DMat4, Loc)>,
 }
 
-/// What the import produced besides the parts: warnings, one line each.
-pub struct Imported {
-    pub parts: SceneParts,
-    pub warnings: Vec<String>,
-}
-
-pub fn import(path: &Path, lenient: bool) -> Result<Imported, SceneError> {
+pub fn import(path: &Path, lenient: bool) -> Result<SceneParts, SceneError> {
     let mut im = Importer {
         lenient,
-        warnings: Vec::new(),
+        builder: Builder::new(path, lenient),
         files: Vec::new(),
-        inputs: Vec::new(),
         canonical: Vec::new(),
         include_stack: Vec::new(),
         dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
-        hasher: Sha256::new(),
         state: State {
             ctm: DMat4::IDENTITY,
             reverse_orientation: false,
@@ -169,7 +159,6 @@ pub fn import(path: &Path, lenient: bool) -> Result<Imported, SceneError> {
         current_object: None,
         shapes: Vec::new(),
         ignored_directives: BTreeSet::new(),
-        materials: Vec::new(),
         material_textures: Vec::new(),
         default_material: None,
         emissive: HashMap::new(),
@@ -197,11 +186,14 @@ pub fn import(path: &Path, lenient: bool) -> Result<Imported, SceneError> {
     }
     if !im.ignored_directives.is_empty() {
         let names: Vec<_> = im.ignored_directives.iter().cloned().collect();
-        im.warnings.push(format!(
-            "{}: ignored (vmerge's own settings apply): {}",
-            im.files[0].display(),
-            names.join(", ")
-        ));
+        let w = Warning::file(
+            &im.files[0],
+            format!(
+                "ignored (vmerge's own settings apply): {}",
+                names.join(", ")
+            ),
+        );
+        im.builder.warn(w);
     }
     im.finish()
 }
@@ -215,13 +207,9 @@ impl Importer {
         }
     }
 
-    fn warn(&mut self, loc: Loc, message: impl AsRef<str>) {
-        self.warnings.push(format!(
-            "{}:{}: {}",
-            self.files[loc.file].display(),
-            loc.line,
-            message.as_ref()
-        ));
+    fn warn(&mut self, loc: Loc, message: impl Into<String>) {
+        let w = Warning::at(&self.files[loc.file], loc.line, message);
+        self.builder.warn(w);
     }
 
     /// Turns a parameter error into a scene error in `file`.
@@ -263,10 +251,9 @@ impl Importer {
             chain.push(path.display().to_string());
             return Err(self.at(loc, format!("Include loop: {}", chain.join(" -> "))));
         }
-        self.hasher.update(text.as_bytes());
+        self.builder.input(path, text.as_bytes());
         let file = self.files.len();
         self.files.push(path.to_path_buf());
-        self.inputs.push(path.to_path_buf());
         self.canonical.push(canonical);
         self.include_stack.push(file);
         let mut parser = Parser::new(&text);
@@ -1021,16 +1008,21 @@ impl Importer {
                 notes.push(format!("{ignored} ignored"));
             }
         }
-        let kind = self.conserve_energy(&mut notes, kind);
+        let kind = clamp_reflectance(&mut notes, kind);
         if !notes.is_empty() {
             self.warn(loc, format!("material '{name}': {}", notes.join("; ")));
         }
-        let index = self.materials.len() as u32;
-        self.materials.push(Material {
+        let origin = Origin {
+            file: self.files[loc.file].clone(),
+            line: Some(loc.line),
+            entry: format!("material '{name}'"),
+        };
+        let material = Material {
             name: name.to_string(),
             kind,
             emission: Rgb::BLACK,
-        });
+        };
+        let index = self.builder.material(&origin, material)?;
         self.material_textures
             .push(texture.map(|(path, scale, loc)| (path, scale * factor, loc)));
         Ok(index)
@@ -1066,93 +1058,56 @@ impl Importer {
         }
     }
 
-    /// Phong conserves energy only for kd + ks <= 1 (000 eq. 3.1): larger sums are scaled
-    /// down per channel.
-    fn conserve_energy(&self, notes: &mut Vec<String>, kind: MaterialKind) -> MaterialKind {
-        // Reflectances above 1 would create energy; pbrt clamps them to [0, 1] too.
-        let clamp = |notes: &mut Vec<String>, c: Rgb| {
-            if c.max_component() > 1.0 {
-                notes.push(format!("reflectance {:?} clamped to 1", round3(c)));
-            }
-            Rgb::new(c.r.min(1.0), c.g.min(1.0), c.b.min(1.0))
-        };
-        let kind = match kind {
-            MaterialKind::Lambert { kd } => MaterialKind::Lambert {
-                kd: clamp(notes, kd),
-            },
-            MaterialKind::Mirror { ks } => MaterialKind::Mirror {
-                ks: clamp(notes, ks),
-            },
-            other => other,
-        };
-        let MaterialKind::Phong { kd, ks, exponent } = kind else {
-            return kind;
-        };
-        let total = kd + ks;
-        if total.max_component() <= 1.0 + 1e-6 {
-            return kind;
-        }
-        notes.push(format!(
-            "kd + ks = {:?} exceeds 1; scaled down",
-            round3(total)
-        ));
-        let f = |c: f32| if c > 1.0 { 1.0 / c } else { 1.0 };
-        let scale = Rgb::new(f(total.r), f(total.g), f(total.b));
-        MaterialKind::Phong {
-            kd: kd * scale,
-            ks: ks * scale,
-            exponent,
-        }
-    }
-
-    fn current_material(&mut self) -> u32 {
+    fn current_material(&mut self) -> Result<u32, SceneError> {
         if let Some(m) = self.state.material {
-            return m;
+            return Ok(m);
         }
         if let Some(m) = self.default_material {
-            return m;
+            return Ok(m);
         }
         // pbrt's default material.
-        let index = self.materials.len() as u32;
-        self.materials.push(Material {
+        let origin = Origin {
+            file: self.files[0].clone(),
+            line: None,
+            entry: "(default diffuse)".into(),
+        };
+        let material = Material {
             name: "(default diffuse)".into(),
             kind: MaterialKind::Lambert {
                 kd: Rgb::splat(0.5),
             },
             emission: Rgb::BLACK,
-        });
+        };
+        let index = self.builder.material(&origin, material)?;
         self.material_textures.push(None);
         self.default_material = Some(index);
-        index
+        Ok(index)
     }
 
     /// The material shapes get now: the current one, emissive when an area light is set.
-    fn shape_material(&mut self) -> u32 {
-        let base = self.current_material();
+    fn shape_material(&mut self) -> Result<u32, SceneError> {
+        let base = self.current_material()?;
         let Some(light) = self.state.area_light.clone() else {
-            return base;
+            return Ok(base);
         };
         if light.radiance.is_black() {
-            return base;
+            return Ok(base);
         }
         let key = (base, light.radiance.to_array().map(f32::to_bits));
         if let Some(&m) = self.emissive.get(&key) {
-            return m;
+            return Ok(m);
         }
-        let mut m = self.materials[base as usize].clone();
-        m.name = format!(
+        let name = format!(
             "{} + AreaLightSource ({}:{})",
-            m.name,
+            self.builder.material_at(base).name,
             self.files[light.loc.file].display(),
             light.loc.line
         );
-        m.emission = light.radiance;
-        let index = self.materials.len() as u32;
-        self.materials.push(m);
+        let index = self.builder.variant(base, name, light.radiance);
         self.material_textures
             .push(self.material_textures[base as usize].clone());
         self.emissive.insert(key, index);
-        index
+        Ok(index)
     }
 
     fn light_source(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
@@ -1287,7 +1242,7 @@ impl Importer {
             p.mark_used(&["alpha"]);
             self.warn(loc, "Shape: alpha (cut-outs) ignored");
         }
-        let material = self.shape_material();
+        let material = self.shape_material()?;
         let record = ShapeRecord {
             kind,
             ctm: self.state.ctm,
@@ -1303,7 +1258,7 @@ impl Importer {
     }
 
     /// Reads the PLY files (in parallel, each once), then lays all shapes out in order.
-    fn finish(mut self) -> Result<Imported, SceneError> {
+    fn finish(mut self) -> Result<SceneParts, SceneError> {
         let mut first_use: HashMap<PathBuf, Loc> = HashMap::new();
         for s in &self.shapes {
             if let ShapeKind::Mesh(m) = &s.kind {
@@ -1329,8 +1284,7 @@ impl Importer {
             let loc = first_use[path];
             match result {
                 Ok((hash, Ok(mesh))) => {
-                    self.hasher.update(hash);
-                    self.inputs.push(path.clone());
+                    self.builder.input_digest(path, &hash);
                     meshes.insert(path.clone(), Arc::new(mesh));
                 }
                 Ok((_, Err(message))) => {
@@ -1374,7 +1328,7 @@ impl Importer {
                             "Shape sphere: non-uniform scale; the mean scale used",
                         );
                     }
-                    if s.reverse_orientation && self.materials[s.material as usize].is_emissive() {
+                    if s.reverse_orientation && self.builder.material_at(s.material).is_emissive() {
                         self.warn(
                             s.loc,
                             "Shape sphere: ReverseOrientation ignored; emits outwards",
@@ -1419,18 +1373,8 @@ impl Importer {
                 }
             }
         }
-        if dropped > 0 {
-            self.warnings.push(format!(
-                "{}: dropped {dropped} degenerate triangles",
-                self.files[0].display()
-            ));
-        }
-        if geometry.triangles.is_empty() && geometry.spheres.is_empty() {
-            return Err(SceneError::NoGeometry {
-                file: self.files[0].clone(),
-            });
-        }
-        let (material_textures, textures) = self.load_textures()?;
+        self.builder.check_geometry(&geometry, dropped)?;
+        self.load_textures()?;
         let env_map = self.env_map()?;
         let camera = self.camera.clone().unwrap_or_else(|| CameraDesc {
             name: "camera".into(),
@@ -1441,44 +1385,28 @@ impl Importer {
             fov_axis: FovAxis::Shorter,
             mirrored: true,
         });
-        let source_hash = self
-            .hasher
-            .finalize()
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect();
         let defaults = RenderDefaults {
             resolution: self.resolution.unwrap_or([1280, 720]),
             max_path_length: self.max_path_length.unwrap_or(6),
             radius: None,
         };
-        Ok(Imported {
-            parts: SceneParts {
-                source: self.files[0].clone(),
-                source_hash,
-                geometry,
-                triangle_materials,
-                sphere_materials,
-                materials: self.materials,
-                material_textures,
-                textures,
-                shading,
-                point_and_directional: self.lights,
-                sky: self.sky,
-                env_map,
-                cameras: vec![camera],
-                defaults,
-                dropped_triangles: dropped,
-                inputs: self.inputs,
-            },
-            warnings: self.warnings,
-        })
+        Ok(self.builder.finish(Contents {
+            geometry,
+            triangle_materials,
+            sphere_materials,
+            shading,
+            lights: self.lights,
+            sky: self.sky,
+            env_map,
+            cameras: vec![camera],
+            defaults,
+            dropped_triangles: dropped,
+        }))
     }
 
     /// Decodes the materials' images (in parallel, each file once) and gives each material its
     /// texture: the image times the material's factor (a scaled copy where that is not 1).
-    #[allow(clippy::type_complexity)]
-    fn load_textures(&mut self) -> Result<(Vec<MaterialTextures>, Vec<Arc<Texture>>), SceneError> {
+    fn load_textures(&mut self) -> Result<(), SceneError> {
         let mut paths: Vec<PathBuf> = self
             .material_textures
             .iter()
@@ -1487,20 +1415,12 @@ impl Importer {
             .collect();
         paths.sort();
         paths.dedup();
-        let decoded: Vec<Result<(Texture, Vec<u8>), String>> = paths
-            .par_iter()
-            .map(|p| {
-                let bytes = std::fs::read(p).map_err(|e| e.to_string())?;
-                Ok((texture::read(p)?, bytes))
-            })
-            .collect();
-        let mut images: HashMap<PathBuf, Arc<Texture>> = HashMap::new();
+        let decoded = self.builder.images(&paths);
+        let mut images = HashMap::new();
         for (path, result) in paths.iter().zip(decoded) {
             match result {
-                Ok((image, bytes)) => {
-                    self.hasher.update(&bytes);
-                    self.inputs.push(path.clone());
-                    images.insert(path.clone(), Arc::new(image));
+                Ok(image) => {
+                    images.insert(path.clone(), image);
                 }
                 Err(message) => {
                     let loc = self
@@ -1509,7 +1429,6 @@ impl Importer {
                         .flatten()
                         .find(|(p, _, _)| p == path)
                         .map_or(Loc { file: 0, line: 1 }, |&(_, _, loc)| loc);
-                    let message = format!("cannot read image {}: {message}", path.display());
                     if !self.lenient {
                         return Err(self.at(loc, message));
                     }
@@ -1517,37 +1436,24 @@ impl Importer {
                 }
             }
         }
-        let mut textures: Vec<Arc<Texture>> = Vec::new();
-        let mut index: HashMap<(PathBuf, [u32; 3]), u32> = HashMap::new();
-        let mut out = Vec::with_capacity(self.material_textures.len());
-        for entry in &self.material_textures {
-            let Some((image, path, factor)) = entry
-                .as_ref()
-                .and_then(|(p, f, _)| images.get(p).map(|i| (i, p, *f)))
-            else {
-                out.push(MaterialTextures::default());
+        let pending = std::mem::take(&mut self.material_textures);
+        for (material, entry) in pending.iter().enumerate() {
+            let Some((path, factor, _)) = entry else {
                 continue;
             };
-            let key = (path.clone(), factor.to_array().map(f32::to_bits));
-            let i = *index.entry(key).or_insert_with(|| {
-                let texture = if factor == Rgb::WHITE {
-                    Arc::clone(image)
-                } else {
-                    let texels = image.texels.iter().map(|&t| t * factor).collect();
-                    Arc::new(Texture {
-                        texels,
-                        ..(**image).clone()
-                    })
-                };
-                textures.push(texture);
-                textures.len() as u32 - 1
-            });
-            out.push(MaterialTextures {
-                kd: Some(i),
-                ks: None,
-            });
+            let Some(image) = images.get(path) else {
+                continue;
+            };
+            let kd = self.builder.texture(path, image, *factor);
+            self.builder.set_textures(
+                material as u32,
+                MaterialTextures {
+                    kd: Some(kd),
+                    ks: None,
+                },
+            );
         }
-        Ok((out, textures))
+        Ok(())
     }
 
     /// The infinite light's image: pbrt-v4's equal-area octahedral square, resampled to the
@@ -1588,8 +1494,7 @@ impl Importer {
                 ),
             ));
         }
-        self.hasher.update(&bytes);
-        self.inputs.push(path.clone());
+        self.builder.input(&path, &bytes);
         let light_from_world = DMat3::from_mat4(ctm).inverse();
         let resampled = super::envmap::equirect_from_octahedral(&image, light_from_world);
         Ok(Some(EnvMapDesc {
@@ -1600,8 +1505,24 @@ impl Importer {
     }
 }
 
-fn round3(c: Rgb) -> [f32; 3] {
-    c.to_array().map(|x| (x * 1000.0).round() / 1000.0)
+/// Reflectances above 1 would create energy; pbrt-v4 clamps them to [0, 1] too. (Phong's
+/// kd + ks is the builder's rule.)
+fn clamp_reflectance(notes: &mut Vec<String>, kind: MaterialKind) -> MaterialKind {
+    let clamp = |notes: &mut Vec<String>, c: Rgb| {
+        if c.max_component() > 1.0 {
+            notes.push(format!("reflectance {:?} clamped to 1", round3(c)));
+        }
+        Rgb::new(c.r.min(1.0), c.g.min(1.0), c.b.min(1.0))
+    };
+    match kind {
+        MaterialKind::Lambert { kd } => MaterialKind::Lambert {
+            kd: clamp(notes, kd),
+        },
+        MaterialKind::Mirror { ks } => MaterialKind::Mirror {
+            ks: clamp(notes, ks),
+        },
+        other => other,
+    }
 }
 
 fn constant_sky(l: Rgb) -> SkyDesc {
@@ -1804,7 +1725,9 @@ mod tests {
     use super::*;
 
     /// Writes `files` (name, contents) to a fresh folder and imports the first.
-    fn import_files(files: &[(&str, &[u8])]) -> (tempfile::TempDir, Result<Imported, SceneError>) {
+    fn import_files(
+        files: &[(&str, &[u8])],
+    ) -> (tempfile::TempDir, Result<SceneParts, SceneError>) {
         let dir = tempfile::tempdir().unwrap();
         for (name, contents) in files {
             std::fs::write(dir.path().join(name), contents).unwrap();
@@ -1813,7 +1736,7 @@ mod tests {
         (dir, result)
     }
 
-    fn parts(src: &str) -> Imported {
+    fn parts(src: &str) -> SceneParts {
         let (_dir, result) = import_files(&[("scene.pbrt", src.as_bytes())]);
         result.unwrap_or_else(|e| panic!("{e}"))
     }
@@ -1840,7 +1763,7 @@ mod tests {
                    AttributeBegin\n CoordSysTransform \"up\"\n Rotate 90 0 0 1\n Translate 1 0 0\n\
                    Shape \"sphere\"\nAttributeEnd\n";
         let im = parts(src);
-        let s = &im.parts.geometry.spheres;
+        let s = &im.geometry.spheres;
         let close = |a: Vec3, b: Vec3| (a - b).length() < 1e-5;
         assert!(close(s[0].center, Vec3::new(1.0, 0.0, 0.0)) && s[0].radius == 1.0);
         assert!(close(s[1].center, Vec3::new(1.0, 0.0, 0.0)) && s[1].radius == 1.0);
@@ -1851,7 +1774,7 @@ mod tests {
             "{:?}",
             s[3].center
         );
-        let cam = &im.parts.cameras[0];
+        let cam = &im.cameras[0];
         assert!(close(cam.position, Vec3::new(0.0, 0.0, 5.0)));
         assert!(close(cam.look_at - cam.position, Vec3::new(0.0, 0.0, -1.0)));
         // A plain LookAt is right-handed in pbrt's left-handed camera space: mirrored.
@@ -1886,7 +1809,7 @@ mod tests {
             ));
         }
         let im = parts(&src);
-        let kinds: Vec<_> = im.parts.materials.iter().map(|m| m.kind.clone()).collect();
+        let kinds: Vec<_> = im.materials.iter().map(|m| m.kind.clone()).collect();
         assert_eq!(
             kinds[0],
             MaterialKind::Lambert {
@@ -1918,7 +1841,7 @@ mod tests {
             }
         );
         // Each quad has its material; approximations warned once each, with the line.
-        let tm = &im.parts.triangle_materials;
+        let tm = &im.triangle_materials;
         assert_eq!(tm.len(), 12);
         assert_eq!(
             tm.chunks(2).map(|c| c[0]).collect::<Vec<_>>(),
@@ -1927,6 +1850,7 @@ mod tests {
         let warned: Vec<_> = im
             .warnings
             .iter()
+            .map(Warning::to_string)
             .filter(|w| w.contains("material '"))
             .collect();
         assert_eq!(warned.len(), 3, "{warned:?}");
@@ -1951,7 +1875,7 @@ mod tests {
              Shape \"trianglemesh\" {QUAD}\n"
         );
         let im = parts(&src);
-        let p = &im.parts;
+        let p = &im;
         let emissive: Vec<_> = p
             .triangle_materials
             .iter()
@@ -1969,7 +1893,7 @@ mod tests {
         let flipped = parts(&format!(
             "WorldBegin\nReverseOrientation\nShape \"trianglemesh\" {QUAD}\n"
         ));
-        let g = &flipped.parts.geometry;
+        let g = &flipped.geometry;
         let [a, b, c] = g.triangles[0].map(|i| g.positions[i as usize]);
         assert!((b - a).cross(c - a).y > 0.0);
     }
@@ -1989,13 +1913,13 @@ mod tests {
             "WorldBegin\nTranslate 0 0 2\nShape \"plymesh\" \"string filename\" \"mesh.ply\"\n";
         let (_dir, result) = import_files(&[("scene.pbrt", src.as_bytes()), ("mesh.ply", &ply)]);
         let im = result.unwrap_or_else(|e| panic!("{e}"));
-        let g = &im.parts.geometry;
+        let g = &im.geometry;
         assert_eq!(g.positions.len(), 4);
         assert_eq!(g.positions[2], Vec3::new(1.0, 1.0, 2.0));
         // The quad is split in two, both turned to face the normals (-z), which with the uvs
         // become the triangles' shading data.
         assert_eq!(g.triangles.len(), 2);
-        let sh = &im.parts.shading;
+        let sh = &im.shading;
         assert_eq!((sh.normals.len(), sh.uvs.len()), (4, 4));
         assert_eq!(sh.normals[0], Vec3::new(0.0, 0.0, -1.0));
         assert_eq!(sh.triangle_normals, g.triangles);
@@ -2024,7 +1948,7 @@ mod tests {
 
     #[test]
     fn image_textures_carry_the_mappings_factor() {
-        let image = Texture::new(2, 1, vec![Rgb::splat(0.5), Rgb::WHITE]).unwrap();
+        let image = texture::Texture::new(2, 1, vec![Rgb::splat(0.5), Rgb::WHITE]).unwrap();
         let pfm = texture::write_pfm(&image);
         let src = format!(
             "WorldBegin\nTexture \"t\" \"spectrum\" \"imagemap\" \"string filename\" \"t.pfm\"\n\
@@ -2033,7 +1957,7 @@ mod tests {
              Material \"coateddiffuse\" \"texture reflectance\" \"half\"\nShape \"trianglemesh\" {QUAD}\n"
         );
         let (_dir, result) = import_files(&[("scene.pbrt", src.as_bytes()), ("t.pfm", &pfm)]);
-        let p = result.unwrap_or_else(|e| panic!("{e}")).parts;
+        let p = result.unwrap_or_else(|e| panic!("{e}"));
         assert_eq!(p.textures.len(), 2);
         let kd = |m: usize| p.material_textures[m].kd.unwrap() as usize;
         assert_eq!(p.textures[kd(0)].texels, image.texels);
@@ -2055,10 +1979,10 @@ mod tests {
         ]);
         let im = result.unwrap_or_else(|e| panic!("{e}"));
         // The included file shares the graphics state: its transform and material carry on.
-        let s = &im.parts.geometry.spheres;
+        let s = &im.geometry.spheres;
         assert_eq!(s.len(), 2);
         assert_eq!((s[0].center.y, s[1].center.y), (1.0, 1.0));
-        assert_eq!(im.parts.sphere_materials, vec![0, 0]);
+        assert_eq!(im.sphere_materials, vec![0, 0]);
         let e = error(&[
             ("scene.pbrt", b"WorldBegin\nInclude \"a.pbrt\"\n"),
             ("a.pbrt", b"\nInclude \"scene.pbrt\"\n"),
@@ -2085,7 +2009,7 @@ mod tests {
              ObjectInstance \"q\"\nTranslate 10 0 0\nObjectInstance \"q\"\n"
         );
         let im = parts(&src);
-        let g = &im.parts.geometry;
+        let g = &im.geometry;
         assert_eq!(g.triangles.len(), 4);
         assert_eq!(g.positions[0], Vec3::new(-1.0, 1.0, -1.0));
         assert_eq!(g.positions[4], Vec3::new(9.0, 1.0, -1.0));

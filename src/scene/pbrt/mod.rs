@@ -16,13 +16,9 @@ mod parser;
 pub mod ply;
 mod tokenizer;
 
-/// Reads a pbrt-v4 scene; warnings go to stderr, one line each.
+/// Reads a pbrt-v4 scene, with its warnings in the parts.
 pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, SceneError> {
-    let imported = import::import(path, options.lenient)?;
-    for w in &imported.warnings {
-        eprintln!("warning: {w}");
-    }
-    Ok(imported.parts)
+    import::import(path, options.lenient)
 }
 
 /// Whether `path` names a pbrt scene (by its extension).
