@@ -37,37 +37,15 @@ use glam::Vec3;
 mod glass;
 mod lambert;
 mod mirror;
+mod params;
 mod phong;
+mod registry;
 
-/// The scattering part of a material.
-#[derive(Clone, Debug, PartialEq)]
-pub enum MaterialKind {
-    Lambert {
-        kd: Rgb,
-    },
-    /// Lafortune's energy-conserving Phong, f = kd/pi + ks (n+2)/(2 pi) cos^n(alpha) (000 eq. 3.1).
-    Phong {
-        kd: Rgb,
-        ks: Rgb,
-        exponent: f32,
-    },
-    Mirror {
-        ks: Rgb,
-    },
-    Glass {
-        ior: f32,
-    },
-}
-
-impl MaterialKind {
-    /// Mirror and glass scatter only into delta directions.
-    pub fn is_delta(&self) -> bool {
-        matches!(
-            self,
-            MaterialKind::Mirror { .. } | MaterialKind::Glass { .. }
-        )
-    }
-}
+pub use params::{
+    BsdfError, EnergyExcess, EnergyFix, ParamKind, ParamProblem, ParamRange, ParamSpec, ParamValue,
+    Params,
+};
+pub use registry::MaterialKind;
 
 /// A named material: how it scatters and what it emits (radiance, one-sided, on the side the
 /// geometric normal points to).
