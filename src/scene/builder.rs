@@ -5,10 +5,11 @@
 //!
 //! # The energy rule
 //!
-//! Phong conserves energy only for kd + ks <= 1 per channel (000 eq. 3.1). A material that
-//! reaches the builder with more, whatever file it came from, is refused with an error naming
-//! the file and the entry, or, when the load is lenient, scaled down per channel to
-//! kd + ks = 1 with a warning. The same Phong therefore gives the same material and the same
+//! Phong conserves energy only for kd + ks <= 1 per channel (000 eq. 3.1), the other BSDFs
+//! for reflectances <= 1 (`MaterialKind::energy_excess`). A material that reaches the builder
+//! with more, whatever file it came from, is refused with an error naming the file and the
+//! entry, or, when the load is lenient, scaled down per channel to kd + ks = 1 (a single
+//! reflectance clamped to 1) with a warning. The same Phong therefore gives the same material and the same
 //! warning from a TOML table, an MTL entry or a pbrt material:
 //! - the numbers are the file's: a sum above 1 is a mistake in them (pbrt-v4 would clamp it
 //!   silently and render something else than the file says), so a strict load names it;
@@ -25,7 +26,7 @@ use super::{
     CameraDesc, MaterialTextures, MeshShading, RenderDefaults, SceneError, SceneParts, Warning,
 };
 use crate::accel::Geometry;
-use crate::bsdf::{Material, MaterialKind};
+use crate::bsdf::{EnergyFix, Material, MaterialKind};
 use crate::color::Rgb;
 use crate::light::{EnvMapDesc, Light, SkyDesc};
 use crate::options::OptionName;
@@ -247,30 +248,24 @@ impl Builder {
         origin: &Origin,
         kind: MaterialKind,
     ) -> Result<MaterialKind, SceneError> {
-        let MaterialKind::Phong { kd, ks, exponent } = kind else {
+        let Some(excess) = kind.energy_excess() else {
             return Ok(kind);
         };
-        let total = kd + ks;
-        if total.max_component() <= 1.0 + 1e-6 {
-            return Ok(kind);
-        }
-        let sum = round3(total);
+        let (what, total) = (excess.what, round3(excess.total));
         if !self.lenient {
             return Err(origin.error(format!(
-                "kd + ks = {sum:?} exceeds 1 and would create energy (use {} to clamp)",
+                "{what} = {total:?} exceeds 1 and would create energy (use {} to clamp)",
                 OptionName("lenient")
             )));
         }
+        let fix = match excess.fix {
+            EnergyFix::Scaled => "scaled down",
+            EnergyFix::Clamped => "clamped to 1",
+        };
         self.warn(origin.warning(format!(
-            "kd + ks = {sum:?} exceeds 1; scaled down to conserve energy"
+            "{what} = {total:?} exceeds 1; {fix} to conserve energy"
         )));
-        let f = |c: f32| if c > 1.0 { 1.0 / c } else { 1.0 };
-        let scale = Rgb::new(f(total.r), f(total.g), f(total.b));
-        Ok(MaterialKind::Phong {
-            kd: kd * scale,
-            ks: ks * scale,
-            exponent,
-        })
+        Ok(excess.conserving)
     }
 
     /// Warns about dropped triangles and refuses a scene without geometry.

@@ -13,7 +13,7 @@ use super::{
     SceneParts, Warning, MAX_COORDINATE,
 };
 use crate::accel::{AccelKind, Geometry, Sphere};
-use crate::bsdf::{Material, MaterialKind};
+use crate::bsdf::{BsdfError, Material, MaterialKind, Params};
 use crate::color::Rgb;
 use crate::files::{self, Kind};
 use crate::light::Light;
@@ -564,58 +564,46 @@ impl Loader {
         base: Option<&Material>,
     ) -> Result<Material, SceneError> {
         let entry = format!("material.{name}");
-        let (base_kd, base_ks, base_n, base_ior) = match base.map(|m| &m.kind) {
-            Some(MaterialKind::Lambert { kd }) => (*kd, Rgb::BLACK, 1.0, 1.5),
-            Some(MaterialKind::Phong { kd, ks, exponent }) => (*kd, *ks, *exponent, 1.5),
-            Some(MaterialKind::Mirror { ks }) => (Rgb::BLACK, *ks, 1.0, 1.5),
-            Some(MaterialKind::Glass { ior }) => (Rgb::BLACK, Rgb::BLACK, 1.0, *ior),
-            None => (Rgb::splat(0.8), Rgb::BLACK, 1.0, 1.5),
+        // Over a base, what the base's type lacks is black (its exponent 1, its ior 1.5);
+        // without one, each type's own defaults.
+        let mut params = match base {
+            Some(m) => {
+                let mut p = Params::new()
+                    .with_color("kd", Rgb::BLACK)
+                    .with_color("ks", Rgb::BLACK)
+                    .with_number("exponent", 1.0)
+                    .with_number("ior", 1.5);
+                p.overlay(&m.kind.params());
+                p
+            }
+            None => Params::new(),
         };
-        let kd =
-            t.kd.map(|v| self.albedo(&format!("{entry}.kd"), v))
-                .transpose()?
-                .unwrap_or(base_kd);
-        let ks =
-            t.ks.map(|v| self.albedo(&format!("{entry}.ks"), v))
-                .transpose()?
-                .unwrap_or(base_ks);
-        let exponent = t
-            .exponent
-            .map(|x| self.positive(&format!("{entry}.exponent"), x))
-            .transpose()?
-            .unwrap_or(base_n);
-        let ior = t
-            .ior
-            .map(|x| self.positive(&format!("{entry}.ior"), x))
-            .transpose()?
-            .unwrap_or(base_ior);
+        if let Some(v) = t.kd {
+            params = params.with_color("kd", self.albedo(&format!("{entry}.kd"), v)?);
+        }
+        if let Some(v) = t.ks {
+            params = params.with_color("ks", self.albedo(&format!("{entry}.ks"), v)?);
+        }
+        if let Some(x) = t.exponent {
+            params =
+                params.with_number("exponent", self.positive(&format!("{entry}.exponent"), x)?);
+        }
+        if let Some(x) = t.ior {
+            params = params.with_number("ior", self.positive(&format!("{entry}.ior"), x)?);
+        }
         let emission = match t.emission {
             Some(v) => self.color(&format!("{entry}.emission"), v)?,
             None => base.map_or(Rgb::BLACK, |m| m.emission),
         };
-        let kind_name = match (&t.kind, base) {
+        let type_name = match (&t.kind, base) {
             (Some(k), _) => k.as_str(),
-            (None, Some(m)) => kind_name(&m.kind),
+            (None, Some(m)) => m.kind.type_name(),
             (None, None) => "lambert",
         };
-        let kind = match kind_name {
-            "lambert" => MaterialKind::Lambert { kd },
-            "phong" => MaterialKind::Phong { kd, ks, exponent },
-            "mirror" => MaterialKind::Mirror {
-                ks: if t.ks.is_some() || base.is_some() {
-                    ks
-                } else {
-                    Rgb::WHITE
-                },
-            },
-            "glass" => MaterialKind::Glass { ior },
-            other => {
-                return Err(self.invalid(
-                    format!("{entry}.type"),
-                    format!("unknown material type '{other}' (lambert, phong, mirror, glass)"),
-                ))
-            }
-        };
+        let kind = MaterialKind::from_params(type_name, &params).map_err(|e| match e {
+            BsdfError::UnknownType { .. } => self.invalid(format!("{entry}.type"), e.to_string()),
+            _ => self.invalid(&entry, e.to_string()),
+        })?;
         Ok(Material {
             name: name.to_string(),
             kind,
@@ -873,23 +861,24 @@ impl Loader {
         }
         let illum = m.illumination_model.unwrap_or(0);
         let dissolve = m.dissolve.unwrap_or(1.0);
-        let kind = if matches!(illum, 4 | 6 | 7) || dissolve < 1.0 {
-            MaterialKind::Glass {
-                ior: m.optical_density.filter(|n| *n > 0.0).unwrap_or(1.5),
-            }
+        let (type_name, params) = if matches!(illum, 4 | 6 | 7) || dissolve < 1.0 {
+            let ior = m.optical_density.filter(|n| *n > 0.0).unwrap_or(1.5);
+            ("glass", Params::new().with_number("ior", ior))
         } else if matches!(illum, 3 | 5) {
-            MaterialKind::Mirror {
-                ks: if m.specular.is_some() { ks } else { Rgb::WHITE },
-            }
+            let ks = if m.specular.is_some() { ks } else { Rgb::WHITE };
+            ("mirror", Params::new().with_color("ks", ks))
         } else if ks.max_component() > 0.0 {
-            MaterialKind::Phong {
-                kd,
-                ks,
-                exponent: m.shininess.filter(|n| *n >= 0.0).unwrap_or(1.0),
-            }
+            let exponent = m.shininess.filter(|n| *n >= 0.0).unwrap_or(1.0);
+            let p = Params::new()
+                .with_color("kd", kd)
+                .with_color("ks", ks)
+                .with_number("exponent", exponent);
+            ("phong", p)
         } else {
-            MaterialKind::Lambert { kd }
+            ("lambert", Params::new().with_color("kd", kd))
         };
+        let kind = MaterialKind::from_params(type_name, &params)
+            .map_err(|e| self.invalid(&entry, e.to_string()))?;
         let origin = Origin {
             file: self.path.clone(),
             line: None,
@@ -948,15 +937,6 @@ fn rotation_deg(r: Vec3) -> Mat3 {
     Mat3::from_rotation_z(r.z.to_radians())
         * Mat3::from_rotation_y(r.y.to_radians())
         * Mat3::from_rotation_x(r.x.to_radians())
-}
-
-fn kind_name(kind: &MaterialKind) -> &'static str {
-    match kind {
-        MaterialKind::Lambert { .. } => "lambert",
-        MaterialKind::Phong { .. } => "phong",
-        MaterialKind::Mirror { .. } => "mirror",
-        MaterialKind::Glass { .. } => "glass",
-    }
 }
 
 /// The file of an MTL `map_*` statement: its last word, after any options (`-s 1 1 1 ...`).

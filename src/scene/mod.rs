@@ -4,8 +4,7 @@
 //! scene and prints nothing.
 
 use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, PACKET};
-use crate::bsdf::{Albedo, Bsdf, Material, MaterialKind, Normals, TransportMode};
-use crate::color::Rgb;
+use crate::bsdf::{Albedo, Bsdf, Material, Normals, TransportMode};
 use crate::light::{EnvMapDesc, Lights, SceneBounds, SkyDesc};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
@@ -326,29 +325,12 @@ impl Scene {
     /// <= 1 per channel, which Phong needs to conserve energy), its constants elsewhere.
     pub fn albedo(&self, material: u32, uv: Vec2) -> Albedo {
         let kind = &self.material(material).kind;
-        let mut albedo = Albedo::of(kind);
         let textures = self.material_textures[material as usize];
         if textures == MaterialTextures::default() {
-            return albedo;
+            return Albedo::of(kind);
         }
-        let clamp = |c: Rgb, limit: Rgb| {
-            Rgb::new(
-                c.r.clamp(0.0, limit.r.max(0.0)),
-                c.g.clamp(0.0, limit.g.max(0.0)),
-                c.b.clamp(0.0, limit.b.max(0.0)),
-            )
-        };
-        if let Some(t) = textures.ks {
-            albedo.ks = clamp(self.textures[t as usize].lookup(uv), Rgb::WHITE);
-        }
-        if let Some(t) = textures.kd {
-            let limit = match kind {
-                MaterialKind::Phong { .. } => Rgb::WHITE - albedo.ks,
-                _ => Rgb::WHITE,
-            };
-            albedo.kd = clamp(self.textures[t as usize].lookup(uv), limit);
-        }
-        albedo
+        let texel = |t: Option<u32>| t.map(|t| self.textures[t as usize].lookup(uv));
+        kind.textured_albedo(texel(textures.kd), texel(textures.ks))
     }
 
     /// The BSDF of `material` at a surface point with `normals` and texture coordinates `uv`,

@@ -6,7 +6,7 @@ use super::material::{self, conductor_f0, dielectric_f0, named_spectrum, phong_e
 use super::parser::{Directive, ParamList, ParamType, ParseError, Parser, Spectrum, TexOr};
 use super::ply::{self, PlyMesh};
 use crate::accel::{Geometry, Sphere};
-use crate::bsdf::{Material, MaterialKind};
+use crate::bsdf::{EnergyFix, Material, MaterialKind};
 use crate::color::Rgb;
 use crate::files::{self, FileError, Kind};
 use crate::light::{EnvMapDesc, Light, SceneBounds, SkyDesc};
@@ -1508,20 +1508,15 @@ impl Importer {
 /// Reflectances above 1 would create energy; pbrt-v4 clamps them to [0, 1] too. (Phong's
 /// kd + ks is the builder's rule.)
 fn clamp_reflectance(notes: &mut Vec<String>, kind: MaterialKind) -> MaterialKind {
-    let clamp = |notes: &mut Vec<String>, c: Rgb| {
-        if c.max_component() > 1.0 {
-            notes.push(format!("reflectance {:?} clamped to 1", round3(c)));
+    match kind.energy_excess() {
+        Some(excess) if excess.fix == EnergyFix::Clamped => {
+            notes.push(format!(
+                "reflectance {:?} clamped to 1",
+                round3(excess.total)
+            ));
+            excess.conserving
         }
-        Rgb::new(c.r.min(1.0), c.g.min(1.0), c.b.min(1.0))
-    };
-    match kind {
-        MaterialKind::Lambert { kd } => MaterialKind::Lambert {
-            kd: clamp(notes, kd),
-        },
-        MaterialKind::Mirror { ks } => MaterialKind::Mirror {
-            ks: clamp(notes, ks),
-        },
-        other => other,
+        _ => kind,
     }
 }
 
