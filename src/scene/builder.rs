@@ -26,7 +26,7 @@ use super::{
     CameraDesc, MaterialTextures, MeshShading, RenderDefaults, SceneError, SceneParts, Warning,
 };
 use crate::accel::Geometry;
-use crate::bsdf::{EnergyFix, Material, MaterialKind};
+use crate::bsdf::{EnergyFix, Material, MaterialKind, Params};
 use crate::color::Rgb;
 use crate::light::{EnvMapDesc, Light, SkyDesc};
 use crate::options::OptionName;
@@ -68,6 +68,27 @@ impl Origin {
             line: self.line,
             entry: Some(self.entry.clone()),
             message,
+        }
+    }
+}
+
+/// A material as a front-end describes it: a BSDF by type name with its parameters (those
+/// absent take the type's defaults), and its emission.
+pub struct MaterialDesc {
+    pub name: String,
+    pub type_name: &'static str,
+    pub params: Params,
+    pub emission: Rgb,
+}
+
+impl MaterialDesc {
+    /// A material that does not emit.
+    pub fn new(name: impl Into<String>, type_name: &'static str, params: Params) -> Self {
+        MaterialDesc {
+            name: name.into(),
+            type_name,
+            params,
+            emission: Rgb::BLACK,
         }
     }
 }
@@ -211,10 +232,17 @@ impl Builder {
         i
     }
 
-    /// Adds a material after the energy rule (module doc); returns its index.
-    pub fn material(&mut self, origin: &Origin, material: Material) -> Result<u32, SceneError> {
-        let kind = self.conserve_energy(origin, material.kind)?;
-        Ok(self.push_material(Material { kind, ..material }))
+    /// Builds a material (its parameters checked by the BSDF) under the energy rule (module
+    /// doc); returns its index.
+    pub fn material(&mut self, origin: &Origin, desc: MaterialDesc) -> Result<u32, SceneError> {
+        let kind = MaterialKind::from_params(desc.type_name, &desc.params)
+            .map_err(|e| origin.error(e.to_string()))?;
+        let kind = self.conserve_energy(origin, kind)?;
+        Ok(self.push_material(Material {
+            name: desc.name,
+            kind,
+            emission: desc.emission,
+        }))
     }
 
     /// Adds a material that is a variant of one already checked (an emissive copy).

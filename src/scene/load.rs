@@ -6,7 +6,7 @@
 //! `texture` / `ks_texture` name image textures. Materials, images, the scene hash and the
 //! warnings go through the [`Builder`] the pbrt importer uses too.
 
-use super::builder::{Builder, Contents, Origin};
+use super::builder::{Builder, Contents, MaterialDesc, Origin};
 use super::wavefront;
 use super::{
     CameraDesc, FovAxis, MaterialTextures, MeshShading, RenderDefaults, Scene, SceneError,
@@ -536,8 +536,8 @@ impl Loader {
         })
     }
 
-    /// Adds a material through the builder's energy rule, findable by its name.
-    fn add_material(&mut self, origin: &Origin, material: Material) -> Result<u32, SceneError> {
+    /// Adds a material through the builder, findable by its name.
+    fn add_material(&mut self, origin: &Origin, material: MaterialDesc) -> Result<u32, SceneError> {
         let name = material.name.clone();
         let index = self.builder.material(origin, material)?;
         self.by_name.insert(name, index);
@@ -562,7 +562,7 @@ impl Loader {
         name: &str,
         t: &MaterialTable,
         base: Option<&Material>,
-    ) -> Result<Material, SceneError> {
+    ) -> Result<MaterialDesc, SceneError> {
         let entry = format!("material.{name}");
         // Over a base, what the base's type lacks is black (its exponent 1, its ior 1.5);
         // without one, each type's own defaults.
@@ -600,14 +600,15 @@ impl Loader {
             (None, Some(m)) => m.kind.type_name(),
             (None, None) => "lambert",
         };
-        let kind = MaterialKind::from_params(type_name, &params).map_err(|e| match e {
-            BsdfError::UnknownType { .. } => self.invalid(format!("{entry}.type"), e.to_string()),
-            _ => self.invalid(&entry, e.to_string()),
-        })?;
-        Ok(Material {
-            name: name.to_string(),
-            kind,
+        let Some(&type_name) = MaterialKind::TYPE_NAMES.iter().find(|&&t| t == type_name) else {
+            let e = BsdfError::UnknownType {
+                name: type_name.to_string(),
+            };
+            return Err(self.invalid(format!("{entry}.type"), e.to_string()));
+        };
+        Ok(MaterialDesc {
             emission,
+            ..MaterialDesc::new(name, type_name, params)
         })
     }
 
@@ -823,14 +824,8 @@ impl Loader {
                     line: None,
                     entry: NAME.into(),
                 };
-                let material = Material {
-                    name: NAME.into(),
-                    kind: MaterialKind::Lambert {
-                        kd: Rgb::splat(0.8),
-                    },
-                    emission: Rgb::BLACK,
-                };
-                self.add_material(&origin, material)
+                let params = Params::new().with_color("kd", Rgb::splat(0.8));
+                self.add_material(&origin, MaterialDesc::new(NAME, "lambert", params))
             }
         }
     }
@@ -877,17 +872,14 @@ impl Loader {
         } else {
             ("lambert", Params::new().with_color("kd", kd))
         };
-        let kind = MaterialKind::from_params(type_name, &params)
-            .map_err(|e| self.invalid(&entry, e.to_string()))?;
         let origin = Origin {
             file: self.path.clone(),
             line: None,
             entry,
         };
-        let material = Material {
-            name: m.name.clone(),
-            kind,
+        let material = MaterialDesc {
             emission,
+            ..MaterialDesc::new(m.name.clone(), type_name, params)
         };
         let index = self.add_material(&origin, material)?;
         let mtl_dir = mtl_file.parent().unwrap_or(Path::new("")).to_path_buf();

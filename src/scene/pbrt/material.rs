@@ -8,9 +8,9 @@
 use super::import::{Importer, Loc};
 use super::parser::{Directive, ParamList, ParamType, Spectrum};
 use super::textures::Tex;
-use crate::bsdf::{EnergyFix, Material, MaterialKind};
+use crate::bsdf::{EnergyFix, MaterialKind, Params};
 use crate::color::Rgb;
-use crate::scene::builder::{round3, Origin};
+use crate::scene::builder::{round3, MaterialDesc, Origin};
 use crate::scene::SceneError;
 
 /// The largest Phong exponent a mapped material gets: past it, f32 cannot resolve the lobe
@@ -169,10 +169,8 @@ impl Importer {
             };
         // What the mapping multiplies the reflectance by, applied to a texture's texels too.
         let mut factor = Rgb::WHITE;
-        let kind = match ty {
-            "diffuse" => MaterialKind::Lambert {
-                kd: albedo(self, "reflectance", Rgb::splat(0.5))?,
-            },
+        let (bsdf, params) = match ty {
+            "diffuse" => lambert(albedo(self, "reflectance", Rgb::splat(0.5))?),
             "coateddiffuse" => {
                 let reflectance = albedo(self, "reflectance", Rgb::splat(0.5))?;
                 let eta = self.float_param(loc, p, "eta", 1.5)?.unwrap_or(1.5);
@@ -185,11 +183,7 @@ impl Importer {
                     "coateddiffuse as Phong: kd = reflectance x (1 - F0), ks = F0 = {f0:.3}, exponent {exponent:.0} from alpha {alpha}"
                 ));
                 factor = Rgb::splat(1.0 - f0);
-                MaterialKind::Phong {
-                    kd: reflectance * (1.0 - f0),
-                    ks: Rgb::splat(f0),
-                    exponent,
-                }
+                phong(reflectance * (1.0 - f0), Rgb::splat(f0), exponent)
             }
             "conductor" => {
                 let alpha = self.alpha(loc, p)?;
@@ -202,18 +196,14 @@ impl Importer {
                     conductor_f0(eta, k)
                 };
                 if alpha == 0.0 {
-                    MaterialKind::Mirror { ks: f0 }
+                    mirror(f0)
                 } else {
                     let exponent = phong_exponent(alpha);
                     notes.push(format!(
                         "rough conductor as Phong: ks = F0 = {:?}, exponent {exponent:.0} from alpha {alpha}",
                         round3(f0)
                     ));
-                    MaterialKind::Phong {
-                        kd: Rgb::BLACK,
-                        ks: f0,
-                        exponent,
-                    }
+                    phong(Rgb::BLACK, f0, exponent)
                 }
             }
             "dielectric" | "thindielectric" => {
@@ -249,7 +239,7 @@ impl Importer {
                 if ty == "thindielectric" {
                     notes.push("thindielectric as glass".into());
                 }
-                MaterialKind::Glass { ior: eta }
+                glass(eta)
             }
             "diffusetransmission" => {
                 let reflectance = albedo(self, "reflectance", Rgb::splat(0.25))?;
@@ -259,9 +249,7 @@ impl Importer {
                     "diffusetransmission as lambert of its reflectance (no transmission)".into(),
                 );
                 factor = Rgb::splat(scale);
-                MaterialKind::Lambert {
-                    kd: reflectance * scale,
-                }
+                lambert(reflectance * scale)
             }
             "coatedconductor" | "measured" | "mix" | "hair" | "subsurface" | "interface" => {
                 let kd = match p.params.iter().any(|q| q.name == "reflectance") {
@@ -270,7 +258,7 @@ impl Importer {
                 };
                 p.mark_all_used();
                 notes.push(format!("'{ty}' as lambert of kd {:?}", round3(kd)));
-                MaterialKind::Lambert { kd }
+                lambert(kd)
             }
             other => {
                 return Err(self.at(loc, format!("unknown material type '{other}'")));
@@ -282,7 +270,7 @@ impl Importer {
                 notes.push(format!("{ignored} ignored"));
             }
         }
-        let kind = clamp_reflectance(&mut notes, kind);
+        let params = clamp_reflectance(&mut notes, bsdf, params);
         if !notes.is_empty() {
             self.warn(loc, format!("material '{name}': {}", notes.join("; ")));
         }
@@ -291,11 +279,7 @@ impl Importer {
             line: Some(loc.line),
             entry: format!("material '{name}'"),
         };
-        let material = Material {
-            name: name.to_string(),
-            kind,
-            emission: Rgb::BLACK,
-        };
+        let material = MaterialDesc::new(name, bsdf, params);
         let index = self.builder.material(&origin, material)?;
         self.material_textures
             .push(texture.map(|(path, scale, loc)| (path, scale * factor, loc)));
@@ -345,13 +329,8 @@ impl Importer {
             line: None,
             entry: "(default diffuse)".into(),
         };
-        let material = Material {
-            name: "(default diffuse)".into(),
-            kind: MaterialKind::Lambert {
-                kd: Rgb::splat(0.5),
-            },
-            emission: Rgb::BLACK,
-        };
+        let (bsdf, params) = lambert(Rgb::splat(0.5));
+        let material = MaterialDesc::new("(default diffuse)", bsdf, params);
         let index = self.builder.material(&origin, material)?;
         self.material_textures.push(None);
         self.default_material = Some(index);
@@ -387,17 +366,42 @@ impl Importer {
 
 /// Reflectances above 1 would create energy; pbrt-v4 clamps them to [0, 1] too. (Phong's
 /// kd + ks is the builder's rule.)
-fn clamp_reflectance(notes: &mut Vec<String>, kind: MaterialKind) -> MaterialKind {
+fn clamp_reflectance(notes: &mut Vec<String>, bsdf: &'static str, params: Params) -> Params {
+    let Ok(kind) = MaterialKind::from_params(bsdf, &params) else {
+        // The builder names what is wrong with the parameters.
+        return params;
+    };
     match kind.energy_excess() {
         Some(excess) if excess.fix == EnergyFix::Clamped => {
             notes.push(format!(
                 "reflectance {:?} clamped to 1",
                 round3(excess.total)
             ));
-            excess.conserving
+            excess.conserving.params()
         }
-        _ => kind,
+        _ => params,
     }
+}
+
+/// The mapping's results: vmerge's BSDFs by type name and parameters, for the builder.
+fn lambert(kd: Rgb) -> (&'static str, Params) {
+    ("lambert", Params::new().with_color("kd", kd))
+}
+
+fn phong(kd: Rgb, ks: Rgb, exponent: f32) -> (&'static str, Params) {
+    let params = Params::new()
+        .with_color("kd", kd)
+        .with_color("ks", ks)
+        .with_number("exponent", exponent);
+    ("phong", params)
+}
+
+fn mirror(ks: Rgb) -> (&'static str, Params) {
+    ("mirror", Params::new().with_color("ks", ks))
+}
+
+fn glass(ior: f32) -> (&'static str, Params) {
+    ("glass", Params::new().with_number("ior", ior))
 }
 
 #[cfg(test)]
