@@ -167,11 +167,11 @@ impl Builder {
     /// recording each new file in the order given; per path, the image or why it cannot be
     /// read (a message naming the file).
     pub fn images(&mut self, paths: &[PathBuf]) -> Vec<Result<Arc<Texture>, String>> {
-        let mut new: Vec<&PathBuf> = paths
+        let mut seen = std::collections::HashSet::new();
+        let new: Vec<&PathBuf> = paths
             .iter()
-            .filter(|p| !self.images.contains_key(*p))
+            .filter(|p| !self.images.contains_key(*p) && seen.insert(*p))
             .collect();
-        new.dedup();
         let decoded: Vec<Result<(Texture, Vec<u8>), String>> = new
             .par_iter()
             .map(|p| {

@@ -31,8 +31,9 @@ const MAX_FOV: f32 = 179.0;
 #[derive(Clone, Copy, Debug)]
 pub struct LoadOptions {
     pub accel: AccelKind,
-    /// Clamp Phong materials with kd + ks > 1 (with a warning) instead of rejecting them, and
-    /// use a material's constant colour (with a warning) where its texture file is missing.
+    /// Scale down materials that would create energy (Phong's kd + ks > 1, in either format)
+    /// with a warning instead of refusing them, and go on past missing files with a warning
+    /// (a material's constant colour for its texture; in pbrt files also meshes and skies).
     pub lenient: bool,
     /// Use the meshes' vertex normals as shading normals (each mesh can still turn them off);
     /// `false` renders every triangle flat, as if the files had none.

@@ -167,3 +167,16 @@ const DIRECTIVES: &[Spec] = &[
 pub fn find(name: &str) -> Option<&'static Spec> {
     DIRECTIVES.iter().find(|s| s.name == name)
 }
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn each_directive_is_listed_once() {
+        let mut names: Vec<_> = super::DIRECTIVES.iter().map(|s| s.name).collect();
+        let n = names.len();
+        names.sort_unstable();
+        names.dedup();
+        assert_eq!(names.len(), n);
+        assert!(super::find("Shape").is_some() && super::find("Shapes").is_none());
+    }
+}
