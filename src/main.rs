@@ -392,6 +392,7 @@ fn render(args: RenderArgs) -> Result<()> {
     setup.check()?;
     let loading = std::time::Instant::now();
     let scene = setup.load_scene()?;
+    print_warnings(&scene);
     eprintln!(
         "loaded {} in {:.2} s ({} triangles, {} spheres, {} lights)",
         scene.source.display(),
@@ -404,11 +405,19 @@ fn render(args: RenderArgs) -> Result<()> {
     run_job(job, stop, args.preview.preview)
 }
 
+/// The load's warnings, one line each on stderr.
+fn print_warnings(scene: &vmerge::scene::Scene) {
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+}
+
 fn resume(args: ContinueArgs) -> Result<()> {
     vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
     let (film, metadata) = vmerge::film::exr::read_render(&args.input)?;
     let scene = vmerge::render::load_for_continue(&metadata, args.accel, args.force)?;
+    print_warnings(&scene);
     let output = args.output.unwrap_or(args.input);
     let job = vmerge::render::continued_job(
         &scene,
@@ -621,7 +630,10 @@ fn batch(args: BatchArgs) -> Result<()> {
                 set_threads(plan.threads)?;
                 let flag = stop_on_signal()?;
                 let mut bar = batch::ProgressBar::default();
-                let ran = batch::run(&plan, args.accel, &flag, &mut |e| bar.show(e))?;
+                let ran = batch::run(&plan, args.accel, &flag, &mut |e| match e {
+                    batch::Event::Warning(w) => bar.suspend(|| eprintln!("warning: {w}")),
+                    _ => bar.show(e),
+                })?;
                 bar.finish();
                 eprintln!("{ran} cells rendered");
             }
