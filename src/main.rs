@@ -488,7 +488,14 @@ fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> 
     let observer = preview
         .as_mut()
         .map(|p| p as &mut dyn vmerge::render::Observer);
-    job.run_observed(stop, &flag, observer, |p| {
+    job.run_observed(stop, &flag, observer, |event| {
+        let p = match event {
+            vmerge::render::RunEvent::Iteration(p) => p,
+            vmerge::render::RunEvent::Warning(w) => {
+                bar.suspend(|| eprintln!("warning: {w}"));
+                return;
+            }
+        };
         bar.set_position(p.iterations);
         let mut msg = format!(
             "{:.2} Msamples/s, {:.2} Mrays/s",
@@ -632,6 +639,7 @@ fn batch(args: BatchArgs) -> Result<()> {
                 let mut bar = batch::ProgressBar::default();
                 let ran = batch::run(&plan, args.accel, &flag, &mut |e| match e {
                     batch::Event::Warning(w) => bar.suspend(|| eprintln!("warning: {w}")),
+                    batch::Event::RunWarning(w) => bar.suspend(|| eprintln!("warning: {w}")),
                     _ => bar.show(e),
                 })?;
                 bar.finish();

@@ -108,6 +108,26 @@ pub struct StopAfter {
     pub time: Option<Duration>,
 }
 
+/// What the loop reports as it goes: progress after every iteration, and the problems it
+/// survived, for the caller to show (the library prints nothing).
+#[derive(Debug)]
+pub enum RunEvent<'a> {
+    Iteration(&'a Progress),
+    Warning(&'a RunWarning),
+}
+
+/// A problem a run survived: the render goes on, or is written.
+#[derive(Debug, Error)]
+pub enum RunWarning {
+    #[error("removed {}, a temporary file a stopped write left", .0.display())]
+    RemovedTemporary(PathBuf),
+    #[error("snapshot not written: {0}; rendering on, trying again at the next snapshot")]
+    SnapshotNotWritten(RenderError),
+    /// The preview is a convenience; the render itself is safe.
+    #[error("{0}; the render is written")]
+    PreviewNotWritten(FilmError),
+}
+
 /// What the loop reports after every iteration, for a progress display.
 #[derive(Clone, Debug)]
 pub struct Progress {
@@ -166,9 +186,9 @@ impl RenderJob<'_> {
         &mut self,
         stop: StopAfter,
         stop_flag: &StopFlag,
-        on_progress: impl FnMut(&Progress),
+        on_event: impl FnMut(RunEvent),
     ) -> Result<(), RenderError> {
-        self.run_observed(stop, stop_flag, None, on_progress)
+        self.run_observed(stop, stop_flag, None, on_event)
     }
 
     /// [`run`](Self::run), telling `observer` after every iteration.
@@ -177,7 +197,7 @@ impl RenderJob<'_> {
         stop: StopAfter,
         stop_flag: &StopFlag,
         mut observer: Option<&mut dyn Observer>,
-        mut on_progress: impl FnMut(&Progress),
+        mut on_event: impl FnMut(RunEvent),
     ) -> Result<(), RenderError> {
         if stop.iterations.is_none() && stop.time.is_none() {
             return Err(RenderError::NoStop);
@@ -185,10 +205,7 @@ impl RenderJob<'_> {
         crate::options::validate_run(stop.iterations, stop.time, self.snapshot_every)?;
         for path in self.written_paths() {
             for stale in crate::film::remove_stale_temporaries(&path) {
-                eprintln!(
-                    "removed {}, a temporary file a stopped write left",
-                    stale.display()
-                );
+                on_event(RunEvent::Warning(&RunWarning::RemovedTemporary(stale)));
             }
         }
         let camera = Camera::new(
@@ -245,7 +262,7 @@ impl RenderJob<'_> {
                 // The integrator is this run's, so its totals are the run's.
                 counters: integrator.counters(),
             };
-            on_progress(&now);
+            on_event(RunEvent::Iteration(&now));
             if let Some(observer) = observer.as_deref_mut() {
                 observer.after_iteration(&self.film, &self.metadata, &now);
             }
@@ -256,9 +273,7 @@ impl RenderJob<'_> {
                 self.metadata.statistics = integrator.statistics(now.elapsed);
                 match self.write() {
                     Ok(()) => last_good = Some(self.output.clone()),
-                    Err(e) => eprintln!(
-                        "warning: snapshot not written: {e}; rendering on, trying again at the next snapshot"
-                    ),
+                    Err(e) => on_event(RunEvent::Warning(&RunWarning::SnapshotNotWritten(e))),
                 }
                 last_snapshot = Instant::now();
             }
@@ -271,7 +286,7 @@ impl RenderJob<'_> {
         // No iteration in this run: no work to give a rate of.
         let elapsed = progress.as_ref().map_or(Duration::ZERO, |p| p.elapsed);
         self.metadata.statistics = integrator.statistics(elapsed);
-        self.write_final(last_good)
+        self.write_final(last_good, &mut on_event)
     }
 
     /// The files a write makes: the EXR and, if wanted, its preview.
@@ -286,7 +301,11 @@ impl RenderJob<'_> {
     /// Writes the final image; where that fails, writes it to the temporary directory and
     /// says so, and where that fails too, names the last good snapshot: the render is never
     /// lost silently.
-    fn write_final(&self, last_good: Option<PathBuf>) -> Result<(), RenderError> {
+    fn write_final(
+        &self,
+        last_good: Option<PathBuf>,
+        on_event: &mut impl FnMut(RunEvent),
+    ) -> Result<(), RenderError> {
         let Err(e) = exr::write_render(&self.output, &self.film, &self.metadata) else {
             if self.png {
                 let preview = self.output.with_extension("png");
@@ -294,8 +313,7 @@ impl RenderJob<'_> {
                 if let Err(e) =
                     png::write_preview(&preview, &mean, self.film.width, self.film.height)
                 {
-                    // The preview is a convenience; the render itself is safe.
-                    eprintln!("warning: {e}; the render is written");
+                    on_event(RunEvent::Warning(&RunWarning::PreviewNotWritten(e)));
                 }
             }
             return Ok(());

@@ -149,7 +149,7 @@ fn packet_rays(scene: &Scene, o: &RenderOptions) -> u64 {
 /// counters: the merges, their trials and tentative rays, their rates; `vcm` reports none.
 #[test]
 fn upg_counters_reach_the_progress_and_the_metadata() {
-    use vmerge::render::{NewRender, Progress, StopAfter, StopFlag};
+    use vmerge::render::{NewRender, Progress, RunEvent, StopAfter, StopFlag};
     let dir = tempfile::tempdir().unwrap();
     for technique in [Technique::Upg, Technique::UpgCamera, Technique::Vcm] {
         let setup = NewRender {
@@ -179,8 +179,12 @@ fn upg_counters_reach_the_progress_and_the_metadata() {
             time: None,
         };
         let mut last = None::<Progress>;
-        job.run(stop, &StopFlag::default(), |p| last = Some(p.clone()))
-            .unwrap();
+        job.run(stop, &StopFlag::default(), |event| {
+            if let RunEvent::Iteration(p) = event {
+                last = Some(p.clone());
+            }
+        })
+        .unwrap();
         let progress = last.expect("a progress report per iteration");
         let statistic = |name: &str| {
             job.metadata

@@ -5,7 +5,7 @@ use super::cell::{make_output, Action, Budget, Cell, CellKind, ReferenceSource, 
 use super::{BatchError, Plan};
 use crate::accel::AccelKind;
 use crate::film::atomic_write;
-use crate::render::{self, NewRender, RenderError, StopAfter, StopFlag};
+use crate::render::{self, NewRender, RenderError, RunEvent, RunWarning, StopAfter, StopFlag};
 use crate::scene::{Scene, Warning};
 use std::fmt::Write as _;
 use std::io::Write as _;
@@ -260,6 +260,8 @@ pub enum Event<'a> {
     Finished,
     /// Loading the current cell's scene went on past a problem.
     Warning(&'a Warning),
+    /// Rendering the current cell went on past a problem.
+    RunWarning(&'a RunWarning),
 }
 
 /// An `indicatif` bar over a plan's cells, with the current cell and its iterations.
@@ -302,7 +304,7 @@ impl ProgressBar {
             )),
             Event::Finished => self.bar.inc(1),
             // The caller shows warnings (see `suspend`).
-            Event::Warning(_) => {}
+            Event::Warning(_) | Event::RunWarning(_) => {}
         }
     }
 
@@ -382,13 +384,14 @@ pub fn run(
     Ok(ran)
 }
 
-/// A render's progress as [`Event::Iteration`]s.
-fn iterations<'a>(on: &'a mut dyn FnMut(&Event)) -> impl FnMut(&render::Progress) + 'a {
-    |p| {
-        on(&Event::Iteration {
+/// A render's progress as [`Event::Iteration`]s, its warnings as [`Event::Warning`]s.
+fn iterations<'a>(on: &'a mut dyn FnMut(&Event)) -> impl FnMut(RunEvent) + 'a {
+    |event| match event {
+        RunEvent::Iteration(p) => on(&Event::Iteration {
             iterations: p.iterations,
             elapsed: p.elapsed,
-        })
+        }),
+        RunEvent::Warning(w) => on(&Event::RunWarning(w)),
     }
 }
 
