@@ -1,7 +1,7 @@
 //! The preview page: a running render's page updates in headless Chromium, the viewer shows
 //! two files split, the server answers its own routes only and is gone when the render ends.
 //!
-//! The browser tests need `chromium` (scripts/setup-debian installs it) and skip, saying so,
+//! The browser tests need `chromium` (`scripts/setup-debian --tests` installs it) and skip, saying so,
 //! without it.
 
 mod common;
@@ -88,7 +88,7 @@ fn chromium() -> Option<PathBuf> {
         .flat_map(|dir| ["chromium", "chromium-browser"].map(|name| dir.join(name)))
         .find(|p| p.is_file());
     if found.is_none() {
-        eprintln!("skipped: no chromium on PATH (scripts/setup-debian installs it)");
+        eprintln!("skipped: no chromium on PATH (`scripts/setup-debian --tests` installs it)");
     }
     found
 }

@@ -447,7 +447,7 @@ impl Default for Estimator {
     /// Single rays: Embree traces a packet's rays 1.1 to 1.4 times faster than single ones,
     /// but tracing is under 40% of the stage, a render's gathers hold too few merges to fill
     /// packets, and the stage is under a fifth of a render: packets gain nothing measurable
-    /// (README, "UPG tentative rays").
+    /// (docs/performance.md, "UPG tentative rays").
     fn default() -> Self {
         Estimator {
             packet: PacketWidth::One,

@@ -1,4 +1,4 @@
-//! pbrt-v4's materials mapped onto vmerge's four BSDFs (the README's table): the Material,
+//! pbrt-v4's materials mapped onto vmerge's four BSDFs (the table in docs/pbrt.md, "Materials"): the Material,
 //! MakeNamedMaterial and NamedMaterial directives, the mapping of each material type, and its
 //! arithmetic (Fresnel reflectance at normal incidence, roughness to a Phong exponent, the RGB
 //! values of pbrt's named metal spectra). The mapping conserves energy for reflectances up to
@@ -144,7 +144,7 @@ impl Importer {
         })
     }
 
-    /// Maps a pbrt material onto vmerge's BSDFs (README, "pbrt-v4 scenes"); one warning per
+    /// Maps a pbrt material onto vmerge's BSDFs (docs/pbrt.md, "Materials"); one warning per
     /// material that is approximated.
     pub(super) fn material(
         &mut self,

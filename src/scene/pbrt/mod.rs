@@ -1,5 +1,5 @@
 //! pbrt-v4 scene files (`.pbrt`): the subset that Bitterli's scenes and typical exports use,
-//! read into the same [`SceneParts`] as the TOML format (README, "pbrt-v4 scenes").
+//! read into the same [`SceneParts`] as the TOML format (docs/pbrt.md).
 //!
 //! `tokenizer` and `parser` turn text into checked directives, `directives` lists every
 //! directive once (its form, where it may stand, its handler), `import` walks the files
