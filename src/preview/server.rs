@@ -296,11 +296,7 @@ fn parse_query(query: &str) -> Option<StateQuery> {
 /// matched by prefix, so `localhost:80.evil.example` is refused too. An SSH tunnel must keep
 /// the port number (`-L PORT:localhost:PORT`).
 fn host_is_loopback(request: &Request, port: u16) -> bool {
-    match request
-        .headers()
-        .iter()
-        .find(|h| h.field.equiv("Host"))
-    {
+    match request.headers().iter().find(|h| h.field.equiv("Host")) {
         Some(h) => host_allowed(h.value.as_str(), port),
         // Not a browser, so not a page of another site.
         None => true,
