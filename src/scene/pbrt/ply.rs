@@ -476,4 +476,34 @@ pub(crate) mod tests {
         assert_eq!(mesh2.triangles, mesh.triangles);
         assert!(parse(b"ply\nformat ascii 1.0\nelement vertex 1\nend_header\n").is_err());
     }
+
+    #[test]
+    fn counts_beyond_the_body_end_in_a_message_not_an_allocation() {
+        let three = b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+        let ply = |vertices: u64, faces: u64| {
+            let mut out = format!(
+                "ply\nformat ascii 1.0\nelement vertex {vertices}\nproperty float x\n\
+                 property float y\nproperty float z\nelement face {faces}\n\
+                 property list uchar uint vertex_indices\nend_header\n"
+            )
+            .into_bytes();
+            out.extend_from_slice(three);
+            out
+        };
+        assert_eq!(parse(&ply(3, 1)).unwrap().triangles, vec![[0, 1, 2]]);
+        let err = parse(&ply(3, u32::MAX as u64)).unwrap_err();
+        assert!(err.contains("ends after 1 of 4294967295 faces"), "{err}");
+        let err = parse(&ply(1 << 40, 1)).unwrap_err();
+        assert!(err.contains("1099511627776 'vertex' elements"), "{err}");
+        // What is reserved is what the body can hold.
+        let body = Binary::<false> {
+            bytes: &[0; 100],
+            pos: 0,
+        };
+        let header = Parser::<DefaultElement>::new()
+            .read_header(&mut Reader::new(&ply(1 << 30, 1 << 30)[..]))
+            .unwrap();
+        assert_eq!(room(&body, &header.elements["vertex"]), 101 / 12);
+        assert_eq!(room(&body, &header.elements["face"]), 101 / 13);
+    }
 }
