@@ -91,7 +91,9 @@ impl Server {
             let worker = std::thread::Builder::new()
                 .name("preview-http".into())
                 .spawn(move || {
+                    // Locals drop in reverse: the server's handle goes before the message.
                     let _ending = ending;
+                    let (serving, content) = (serving, content);
                     // A worker freed from a stalled client after `drop` must not wait for
                     // requests again: the wake-ups went to the others.
                     while !stopping.load(Ordering::SeqCst) {
@@ -158,16 +160,19 @@ impl Drop for Server {
             self.http.unblock();
         }
         let deadline = Instant::now() + DRAIN;
-        for _ in 0..self.workers.len() {
+        let mut ended = 0;
+        while ended < self.workers.len() {
             let left = deadline.saturating_duration_since(Instant::now());
             if self.ended.recv_timeout(left).is_err() {
                 break;
             }
+            ended += 1;
         }
+        let all = ended == self.workers.len();
         for worker in self.workers.drain(..) {
             // One still writing to a stalled client is left to end with the process (dropping
             // its handle detaches it); one that panicked has nothing left to clean up.
-            if worker.is_finished() {
+            if all || worker.is_finished() {
                 let _ = worker.join();
             }
         }
