@@ -8,9 +8,10 @@ use std::borrow::Cow;
 /// longer one is a damaged or hostile file, refused before any message quotes it in full.
 pub const MAX_BARE: usize = 256;
 
-/// The longest quoted string: a path longer than the system's limit (4096 bytes) cannot be
-/// opened, and names are far shorter.
-pub const MAX_STRING: usize = 4096;
+/// The longest quoted string: names and types are short, and scene files name their textures
+/// and meshes by short relative paths. Kept low enough that a message quoting a whole string
+/// and a bare word stays under 2,000 bytes.
+pub const MAX_STRING: usize = 1024;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
