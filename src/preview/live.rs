@@ -203,6 +203,12 @@ impl LivePreview {
         self.server.address()
     }
 
+    /// A warning for the user when the page is reachable from other machines (see
+    /// [`Server::warning`]).
+    pub fn warning(&self) -> Option<String> {
+        self.server.warning()
+    }
+
     fn progress_view(&self, progress: &Progress) -> ProgressView {
         let elapsed = progress.elapsed.as_secs_f64();
         let here = progress
