@@ -446,6 +446,9 @@ use vmerge::render::{RenderJob, StopAfter};
 fn view(files: &[PathBuf], address: SocketAddr) -> Result<()> {
     let viewer = vmerge::preview::Viewer::load(files)?;
     let server = viewer.serve(address)?;
+    if let Some(w) = server.warning() {
+        eprintln!("warning: {w}");
+    }
     let (stop, stopped) = std::sync::mpsc::channel();
     ctrlc::set_handler(move || {
         // The receiver lives until main returns.
@@ -484,6 +487,9 @@ fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> 
         .transpose()?;
     if let Some(p) = &preview {
         eprintln!("preview at http://{}/", p.address());
+        if let Some(w) = p.warning() {
+            eprintln!("warning: {w}");
+        }
     }
     let observer = preview
         .as_mut()
