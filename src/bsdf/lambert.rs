@@ -69,14 +69,7 @@ impl Bxdf for Lambert {
     #[inline]
     fn sample(&self, wo: Vec3, u: [f32; 3], mode: TransportMode) -> Option<BsdfSample> {
         let wi = cosine_hemisphere([u[1], u[2]]);
-        let e = self.eval(wo, wi, mode);
-        (e.pdf_w > 0.0).then_some(BsdfSample {
-            wi,
-            f: e.f,
-            pdf_w: e.pdf_w,
-            rev_pdf_w: e.rev_pdf_w,
-            delta: false,
-        })
+        self.eval(wo, wi, mode).sample_at(wi)
     }
 
     fn continuation_albedo(&self) -> Rgb {

@@ -306,6 +306,18 @@ impl BsdfEval {
         pdf_w: 0.0,
         rev_pdf_w: 0.0,
     };
+
+    /// The sample of a non-delta lobe at `wi` with these values; `None` where `wi` cannot be
+    /// drawn (below the surface, or outside the lobe).
+    pub fn sample_at(self, wi: Vec3) -> Option<BsdfSample> {
+        (self.pdf_w > 0.0).then_some(BsdfSample {
+            wi,
+            f: self.f,
+            pdf_w: self.pdf_w,
+            rev_pdf_w: self.rev_pdf_w,
+            delta: false,
+        })
+    }
 }
 
 /// Mirror reflection of a local direction about the normal.

@@ -166,14 +166,7 @@ impl Bxdf for Phong {
         } else {
             Frame::from_z(reflect_local(wo)).to_world(power_cosine([u[1], u[2]], phong.exponent))
         };
-        let e = phong.eval(wo, wi);
-        (e.pdf_w > 0.0).then_some(BsdfSample {
-            wi,
-            f: e.f,
-            pdf_w: e.pdf_w,
-            rev_pdf_w: e.rev_pdf_w,
-            delta: false,
-        })
+        phong.eval(wo, wi).sample_at(wi)
     }
 
     fn continuation_albedo(&self) -> Rgb {
