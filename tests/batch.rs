@@ -453,8 +453,14 @@ radius = [0.05, 0.1]
         ] {
             assert!(text.contains(&line), "{line}: {text}");
         }
-        // Iteration budgets give no time limit; 16x16 pixels need little beyond the allowance.
-        assert!(!text.contains("--time="), "{text}");
+        // Iteration budgets give no time limit, a merge ten minutes; 16x16 pixels need
+        // little beyond the allowance.
+        assert_eq!(
+            text.contains("#SBATCH --time=0-00:10:00\n"),
+            stage == 1,
+            "{text}"
+        );
+        assert_eq!(text.matches("--time=").count(), usize::from(stage == 1));
         assert!(text.contains("#SBATCH --mem=52"), "{text}");
         let tasks = text.lines().filter(|l| l.contains(") exec ")).count();
         assert_eq!(tasks, n);
