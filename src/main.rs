@@ -595,7 +595,9 @@ enum BatchCommand {
 
 fn warn_blocked(blocked: usize) {
     if blocked > 0 {
-        eprintln!("{blocked} cells cannot run: their reference file is not there (see batch status)");
+        eprintln!(
+            "{blocked} cells cannot run: their reference file is not there (see batch status)"
+        );
     }
 }
 

@@ -18,7 +18,13 @@ use std::time::{Duration, Instant};
 static CLUSTER: Mutex<()> = Mutex::new(());
 
 const TOOLS: [&str; 7] = [
-    "munged", "slurmctld", "slurmd", "sbatch", "squeue", "scontrol", "scancel",
+    "munged",
+    "slurmctld",
+    "slurmd",
+    "sbatch",
+    "squeue",
+    "scontrol",
+    "scancel",
 ];
 
 fn scene(name: &str) -> String {
@@ -88,7 +94,12 @@ fn free_port() -> u16 {
 fn total_memory_mib() -> u64 {
     let text = std::fs::read_to_string("/proc/meminfo").unwrap();
     let line = text.lines().find(|l| l.starts_with("MemTotal:")).unwrap();
-    line.split_whitespace().nth(1).unwrap().parse::<u64>().unwrap() / 1024
+    line.split_whitespace()
+        .nth(1)
+        .unwrap()
+        .parse::<u64>()
+        .unwrap()
+        / 1024
 }
 
 impl Cluster {
@@ -206,7 +217,13 @@ PartitionName=debug Nodes=localhost Default=YES MaxTime=INFINITE State=UP
         spawn(
             &mut cluster,
             "slurmd",
-            &["-D".into(), "-N".into(), "localhost".into(), "-f".into(), conf],
+            &[
+                "-D".into(),
+                "-N".into(),
+                "localhost".into(),
+                "-f".into(),
+                conf,
+            ],
         )?;
         cluster.wait_for("the node to be idle", Duration::from_secs(60), |c| {
             c.slurm("sinfo", &["--noheader", "--format=%T"])
@@ -383,7 +400,8 @@ fn status_tasks(status: &str) -> HashMap<String, (String, String, String)> {
             let words: Vec<&str> = l.split_whitespace().collect();
             match words[..] {
                 [word, id, state, cell]
-                    if id.contains('_') && ["queued", "running", "done", "failed"].contains(&word) =>
+                    if id.contains('_')
+                        && ["queued", "running", "done", "failed"].contains(&word) =>
                 {
                     Some((id.into(), (word.into(), state.into(), cell.into())))
                 }
@@ -485,7 +503,12 @@ fn submitted_plan_runs_in_stages_and_matches_in_process() {
             .all(|(_, (word, _, _))| word == "queued"),
         "the cells wait for their references: {status}"
     );
-    cluster.wait_jobs(&jobs, Duration::from_secs(150), "the plan's tasks to end", all_ended);
+    cluster.wait_jobs(
+        &jobs,
+        Duration::from_secs(150),
+        "the plan's tasks to end",
+        all_ended,
+    );
     let under_slurm = start.elapsed();
     eprintln!(
         "14 cells: {:.1} s in-process, {:.1} s through Slurm",
@@ -498,21 +521,35 @@ fn submitted_plan_runs_in_stages_and_matches_in_process() {
     assert!(states.values().all(|s| s == "COMPLETED"), "{states:?}");
     let status = check_status_agrees(&cluster, there_arg, &jobs, 14);
     assert!(status.contains("14 cells: 14 done"), "{status}");
-    assert!(status.contains("0 queued, 0 running, 14 done, 0 failed"), "{status}");
+    assert!(
+        status.contains("0 queued, 0 running, 14 done, 0 failed"),
+        "{status}"
+    );
     for (id, (word, _, _)) in status_tasks(&status) {
         assert_eq!(word, "done");
         assert_eq!(cluster.scontrol(&id, "JobState"), "COMPLETED", "{id}");
     }
     let plan = vmerge::tools::batch::Plan::load(&there).unwrap();
     for cell in &plan.cells {
-        let local = here.parent().unwrap().join("results").join(format!("{}.exr", cell.name));
+        let local = here
+            .parent()
+            .unwrap()
+            .join("results")
+            .join(format!("{}.exr", cell.name));
         assert_eq!(pixels(&cell.output), pixels(&local), "{}", cell.name);
     }
     cluster.run(&["batch", "report", there_arg]);
-    assert!(there.parent().unwrap().join("results/report/index.html").exists());
+    assert!(there
+        .parent()
+        .unwrap()
+        .join("results/report/index.html")
+        .exists());
     // Nothing is left to submit.
     let again = cluster.vmerge(&["batch", there_arg, "--submit"]);
-    assert!(again.status.success() && again.stdout.is_empty(), "{again:?}");
+    assert!(
+        again.status.success() && again.stdout.is_empty(),
+        "{again:?}"
+    );
 }
 
 #[test]
@@ -557,7 +594,10 @@ fn cancelled_task_continues_when_requeued_and_broken_scene_fails_once() {
     assert_eq!(jobs.len(), 1, "{jobs:?}");
     let good = format!("{}_0", jobs[0]);
     let bad = format!("{}_1", jobs[0]);
-    let cell = there.parent().unwrap().join("results/cornell-box.cam0.bpt.exr");
+    let cell = there
+        .parent()
+        .unwrap()
+        .join("results/cornell-box.cam0.bpt.exr");
     // Cancelled after its first snapshot, while it runs.
     cluster
         .wait_for("the cell's first snapshot", Duration::from_secs(60), |c| {
@@ -574,19 +614,26 @@ fn cancelled_task_continues_when_requeued_and_broken_scene_fails_once() {
         status.contains("partial  cornell-box.cam0.bpt"),
         "cancelled before its budget ran out ({uninterrupted:?} in-process): {status}"
     );
-    assert!(status.contains("0 queued, 0 running, 0 done, 2 failed"), "{status}");
+    assert!(
+        status.contains("0 queued, 0 running, 0 done, 2 failed"),
+        "{status}"
+    );
 
     // Requeued, it continues from its snapshot to the uninterrupted image. Slurm holds a
     // requeued job for two minutes (its BeginTime) before it may start again: released at once.
     cluster.slurm("scontrol", &["requeue", &good]).unwrap();
     cluster
-        .wait_for("the requeued task's release", Duration::from_secs(30), |c| {
-            c.slurm(
-                "scontrol",
-                &["update", &format!("JobId={good}"), "StartTime=now"],
-            )
-            .is_some()
-        })
+        .wait_for(
+            "the requeued task's release",
+            Duration::from_secs(30),
+            |c| {
+                c.slurm(
+                    "scontrol",
+                    &["update", &format!("JobId={good}"), "StartTime=now"],
+                )
+                .is_some()
+            },
+        )
         .unwrap();
     cluster.wait_jobs(&jobs, Duration::from_secs(120), "the requeued task", |s| {
         s.get(&good).is_some_and(|s| s == "COMPLETED")
@@ -599,7 +646,10 @@ fn cancelled_task_continues_when_requeued_and_broken_scene_fails_once() {
     )
     .unwrap();
     assert!(log.contains("cornell-box.cam0.bpt: continue"), "{log}");
-    let local = here.parent().unwrap().join("results/cornell-box.cam0.bpt.exr");
+    let local = here
+        .parent()
+        .unwrap()
+        .join("results/cornell-box.cam0.bpt.exr");
     assert_eq!(pixels(&cell), pixels(&local));
     assert_eq!(cluster.scontrol(&good, "Restarts"), "1");
 
@@ -617,5 +667,8 @@ fn cancelled_task_continues_when_requeued_and_broken_scene_fails_once() {
     assert_eq!(log.matches("error:").count(), 1, "{log}");
     assert!(log.contains("broken.toml"), "{log}");
     let status = check_status_agrees(&cluster, there_arg, &jobs, 2);
-    assert!(status.contains("0 queued, 0 running, 1 done, 1 failed"), "{status}");
+    assert!(
+        status.contains("0 queued, 0 running, 1 done, 1 failed"),
+        "{status}"
+    );
 }

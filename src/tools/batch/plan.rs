@@ -333,9 +333,8 @@ impl Reader<'_> {
         }
         if let Some(v) = table.get("sbatch") {
             for line in self.strings("slurm: sbatch", v)? {
-                let fits = line.starts_with('-')
-                    && line.len() > 1
-                    && !line.chars().any(char::is_control);
+                let fits =
+                    line.starts_with('-') && line.len() > 1 && !line.chars().any(char::is_control);
                 if !fits {
                     return Err(self.error(
                         "slurm: sbatch",

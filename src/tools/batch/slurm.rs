@@ -165,7 +165,10 @@ fn stage_script(
     let mut option = |text: String| {
         let _ = writeln!(s, "#SBATCH {text}");
     };
-    option(format!("--job-name={}", quote(&format!("vmerge-{stem}-{stage}"))));
+    option(format!(
+        "--job-name={}",
+        quote(&format!("vmerge-{stem}-{stage}"))
+    ));
     option(format!("--array=0-{}", cells.len().saturating_sub(1)));
     // Requeued tasks (preemption, node failure) continue from their cell's snapshot, and
     // their log goes on in the same file.
@@ -212,14 +215,25 @@ fn stage_script(
     Ok(s)
 }
 
+/// One stage's sbatch script and the cells of its array tasks.
+struct StageScript {
+    text: String,
+    cells: Vec<usize>,
+}
+
 /// The stages' scripts, and the cells that cannot run.
-fn scripts(plan: &Plan, program: &Path) -> Result<(Vec<(String, Vec<usize>)>, usize), BatchError> {
+fn scripts(plan: &Plan, program: &Path) -> Result<(Vec<StageScript>, usize), BatchError> {
     make_output(&plan.output)?;
     let (stages, blocked) = stages(plan);
     let scripts = stages
         .iter()
         .enumerate()
-        .map(|(k, cells)| Ok((stage_script(plan, program, k, stages.len(), cells)?, cells.clone())))
+        .map(|(k, cells)| {
+            Ok(StageScript {
+                text: stage_script(plan, program, k, stages.len(), cells)?,
+                cells: cells.clone(),
+            })
+        })
         .collect::<Result<_, BatchError>>()?;
     Ok((scripts, blocked))
 }
@@ -243,7 +257,14 @@ pub fn slurm(plan: &Plan, program: &Path, file: &Path) -> Result<(Vec<usize>, us
         quote(&file.to_string_lossy())
     );
     s.push_str("set -euo pipefail\n");
-    for (k, (script, cells)) in scripts.iter().enumerate() {
+    for (
+        k,
+        StageScript {
+            text: script,
+            cells,
+        },
+    ) in scripts.iter().enumerate()
+    {
         let dependency = if k == 0 {
             String::new()
         } else {
@@ -262,7 +283,7 @@ pub fn slurm(plan: &Plan, program: &Path, file: &Path) -> Result<(Vec<usize>, us
         file: file.into(),
         message: e.to_string(),
     })?;
-    Ok((scripts.iter().map(|(_, c)| c.len()).collect(), blocked))
+    Ok((scripts.iter().map(|s| s.cells.len()).collect(), blocked))
 }
 
 /// One array task of a submission.
@@ -328,7 +349,11 @@ fn write_record(plan: &Plan, tasks: &[Task]) -> Result<(), BatchError> {
 }
 
 /// Runs a Slurm command, returning its standard output.
-fn slurm_command(program: &str, args: &[String], input: Option<&str>) -> Result<String, BatchError> {
+fn slurm_command(
+    program: &str,
+    args: &[String],
+    input: Option<&str>,
+) -> Result<String, BatchError> {
     let failed = |message: String| BatchError::Slurm {
         command: format!("{program} {}", args.join(" ")),
         message,
@@ -349,7 +374,9 @@ fn slurm_command(program: &str, args: &[String], input: Option<&str>) -> Result<
             .write_all(text.as_bytes())
             .map_err(|e| failed(e.to_string()))?;
     }
-    let out = child.wait_with_output().map_err(|e| failed(e.to_string()))?;
+    let out = child
+        .wait_with_output()
+        .map_err(|e| failed(e.to_string()))?;
     if !out.status.success() {
         return Err(failed(format!(
             "{} ({})",
@@ -395,7 +422,14 @@ pub fn submit(plan: &Plan, program: &Path) -> Result<Submission, BatchError> {
     let (scripts, blocked) = scripts(plan, program)?;
     let mut record = earlier;
     let mut jobs = Vec::new();
-    for (k, (script, cells)) in scripts.iter().enumerate() {
+    for (
+        k,
+        StageScript {
+            text: script,
+            cells,
+        },
+    ) in scripts.iter().enumerate()
+    {
         let mut args = vec!["--parsable".to_string()];
         if let Some((previous, _)) = jobs.last() {
             args.push(format!("--dependency=afterok:{previous}"));
@@ -522,7 +556,12 @@ pub fn slurm_status(plan: &Plan) -> Result<Option<String>, BatchError> {
         if let Some(c) = counts.iter_mut().find(|(w, _)| *w == word) {
             c.1 += 1;
         }
-        let _ = writeln!(text, "{word:<8} {:<10} {state:<12} {}", task.id(), task.cell);
+        let _ = writeln!(
+            text,
+            "{word:<8} {:<10} {state:<12} {}",
+            task.id(),
+            task.cell
+        );
     }
     let mut jobs: Vec<&str> = tasks.iter().map(|t| t.job.as_str()).collect();
     jobs.dedup();
@@ -579,4 +618,3 @@ pub fn run_one(
     on(&Event::Finished);
     Ok(matches!(cell.state(&plan.cells), State::Done { .. }))
 }
-
