@@ -7,9 +7,10 @@ use std::path::Path;
 use std::time::Duration;
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext};
+use vmerge::integrator::RenderContext;
 use vmerge::options::RenderOptions;
 use vmerge::options::Technique;
+use vmerge::render::create_integrator;
 use vmerge::scene::Camera;
 
 mod common;
@@ -41,7 +42,7 @@ fn bench_scene(c: &mut Criterion, name: &str, path: &Path) {
             ..Default::default()
         };
         let camera = Camera::new(scene.camera(None).expect("camera"), SIZE, SIZE);
-        let mut pt = integrator::create(RenderContext {
+        let mut pt = create_integrator(RenderContext {
             scene,
             camera,
             options: &options,

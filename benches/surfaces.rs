@@ -15,8 +15,9 @@ use std::time::Instant;
 use vmerge::accel::AccelKind;
 use vmerge::bsdf::Albedo;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext};
+use vmerge::integrator::RenderContext;
 use vmerge::options::{RenderOptions, Technique};
+use vmerge::render::create_integrator;
 use vmerge::scene::{self, Camera, LoadOptions, MaterialTextures, MeshShading, Scene};
 use vmerge::texture::Texture;
 
@@ -139,7 +140,7 @@ fn main() {
             .iter()
             .map(|scene| {
                 let camera = Camera::new(scene.camera(None).expect("camera"), SIZE, SIZE);
-                integrator::create(RenderContext {
+                create_integrator(RenderContext {
                     scene,
                     camera,
                     options: &options,

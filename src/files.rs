@@ -3,6 +3,7 @@
 //! kind, and an output lies in an existing, writable directory, is not a directory and is not
 //! one of the render's inputs.
 
+use std::borrow::Cow;
 use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
@@ -172,6 +173,18 @@ pub fn excerpt(text: &str, max: usize) -> String {
     }
 }
 
+/// How many characters of a piece of input a message quotes.
+pub const SNIPPET: usize = 64;
+
+/// `text` as a message quotes it: whole when short, else its first [`SNIPPET`] characters, an
+/// ellipsis and its full length, so a huge token or line never floods the terminal.
+pub fn snippet(text: &str) -> Cow<'_, str> {
+    match text.char_indices().nth(SNIPPET) {
+        None => Cow::Borrowed(text),
+        Some((cut, _)) => Cow::Owned(format!("{}... ({} bytes)", &text[..cut], text.len())),
+    }
+}
+
 /// Shortens every line of a message to `max` characters (parsers quote whole input lines).
 pub fn shorten_lines(message: &str, max: usize) -> String {
     message
@@ -259,6 +272,18 @@ mod tests {
             format!("{}...", "x".repeat(10))
         );
         assert_eq!(excerpt("one\ntwo", 10), "one...");
+    }
+
+    #[test]
+    fn snippets_cut_on_a_char_boundary_and_give_the_length() {
+        assert_eq!(snippet("short"), "short");
+        let exact = "y".repeat(SNIPPET);
+        assert_eq!(snippet(&exact), exact);
+        let long = "\u{e9}".repeat(1000);
+        assert_eq!(
+            snippet(&long),
+            format!("{}... (2000 bytes)", "\u{e9}".repeat(SNIPPET))
+        );
     }
 
     #[test]

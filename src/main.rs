@@ -392,6 +392,7 @@ fn render(args: RenderArgs) -> Result<()> {
     setup.check()?;
     let loading = std::time::Instant::now();
     let scene = setup.load_scene()?;
+    print_warnings(&scene);
     eprintln!(
         "loaded {} in {:.2} s ({} triangles, {} spheres, {} lights)",
         scene.source.display(),
@@ -404,11 +405,19 @@ fn render(args: RenderArgs) -> Result<()> {
     run_job(job, stop, args.preview.preview)
 }
 
+/// The load's warnings, one line each on stderr.
+fn print_warnings(scene: &vmerge::scene::Scene) {
+    for w in &scene.warnings {
+        eprintln!("warning: {w}");
+    }
+}
+
 fn resume(args: ContinueArgs) -> Result<()> {
     vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
     let (film, metadata) = vmerge::film::exr::read_render(&args.input)?;
     let scene = vmerge::render::load_for_continue(&metadata, args.accel, args.force)?;
+    print_warnings(&scene);
     let output = args.output.unwrap_or(args.input);
     let job = vmerge::render::continued_job(
         &scene,
@@ -437,6 +446,9 @@ use vmerge::render::{RenderJob, StopAfter};
 fn view(files: &[PathBuf], address: SocketAddr) -> Result<()> {
     let viewer = vmerge::preview::Viewer::load(files)?;
     let server = viewer.serve(address)?;
+    if let Some(w) = server.warning() {
+        eprintln!("warning: {w}");
+    }
     let (stop, stopped) = std::sync::mpsc::channel();
     ctrlc::set_handler(move || {
         // The receiver lives until main returns.
@@ -475,11 +487,21 @@ fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> 
         .transpose()?;
     if let Some(p) = &preview {
         eprintln!("preview at http://{}/", p.address());
+        if let Some(w) = p.warning() {
+            eprintln!("warning: {w}");
+        }
     }
     let observer = preview
         .as_mut()
         .map(|p| p as &mut dyn vmerge::render::Observer);
-    job.run_observed(stop, &flag, observer, |p| {
+    job.run_observed(stop, &flag, observer, |event| {
+        let p = match event {
+            vmerge::render::RunEvent::Iteration(p) => p,
+            vmerge::render::RunEvent::Warning(w) => {
+                bar.suspend(|| eprintln!("warning: {w}"));
+                return;
+            }
+        };
         bar.set_position(p.iterations);
         let mut msg = format!(
             "{:.2} Msamples/s, {:.2} Mrays/s",
@@ -489,14 +511,14 @@ fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> 
         if let Some(rmse) = p.rmse {
             msg.push_str(&format!(", rmse {rmse:.4e}"));
         }
-        if p.upg.merges > 0 {
+        if let Some(upg) = vmerge::integrator::upg::UpgCounters::from_named(&p.counters) {
             let seconds = p.elapsed.as_secs_f64().max(1e-9);
             msg.push_str(&format!(
                 ", upg {:.2} trials/merge, {:.2} Mmerges/s, {:.2} Mtentative rays/s, {} capped",
-                p.upg.trials as f64 / p.upg.merges as f64,
-                p.upg.merges as f64 / seconds / 1e6,
-                p.upg.tentative_rays as f64 / seconds / 1e6,
-                p.upg.capped
+                upg.trials as f64 / upg.merges as f64,
+                upg.merges as f64 / seconds / 1e6,
+                upg.tentative_rays as f64 / seconds / 1e6,
+                upg.capped
             ));
         }
         bar.set_message(msg);
@@ -656,10 +678,14 @@ fn batch(args: BatchArgs) -> Result<()> {
             } else if let Some(name) = args.cell {
                 set_threads(plan.threads)?;
                 let flag = stop_on_signal()?;
-                let done = batch::run_one(&plan, &name, args.accel, &flag, &mut |e| {
-                    if let batch::Event::Cell { name, action } = e {
-                        eprintln!("{name}: {}", batch::describe_action(action));
+                // Plain lines for the task's log: the action, then any warnings.
+                let done = batch::run_one(&plan, &name, args.accel, &flag, &mut |e| match e {
+                    batch::Event::Cell { name, action } => {
+                        eprintln!("{name}: {}", batch::describe_action(action))
                     }
+                    batch::Event::Warning(w) => eprintln!("warning: {w}"),
+                    batch::Event::RunWarning(w) => eprintln!("warning: {w}"),
+                    _ => {}
                 })?;
                 // A cell stopped short must not count as done to the stages after it.
                 if !done {
@@ -670,7 +696,11 @@ fn batch(args: BatchArgs) -> Result<()> {
                 set_threads(plan.threads)?;
                 let flag = stop_on_signal()?;
                 let mut bar = batch::ProgressBar::default();
-                let ran = batch::run(&plan, args.accel, &flag, &mut |e| bar.show(e))?;
+                let ran = batch::run(&plan, args.accel, &flag, &mut |e| match e {
+                    batch::Event::Warning(w) => bar.suspend(|| eprintln!("warning: {w}")),
+                    batch::Event::RunWarning(w) => bar.suspend(|| eprintln!("warning: {w}")),
+                    _ => bar.show(e),
+                })?;
                 bar.finish();
                 eprintln!("{ran} cells rendered");
             }

@@ -2,7 +2,8 @@
 //! machine's available memory unless told otherwise), so that a resolution too large for the
 //! machine is refused with a message rather than aborting in an allocation.
 
-use crate::integrator::subpath::{LightVertex, MergeVertex};
+use crate::integrator::subpath::MergeVertex;
+use crate::integrator::vcm::LightVertex;
 use crate::options::{OptionName, Technique};
 use std::fmt;
 use thiserror::Error;

@@ -4,10 +4,12 @@ use crate::accel::AccelKind;
 use crate::color::Rgb;
 use crate::files::FileError;
 use crate::film::{exr, png, ErrorTracker, Film, FilmError, Metadata, TraceWindow};
-use crate::integrator::upg::UpgCounters;
-use crate::integrator::{self, RenderContext};
+use crate::integrator::bpt::Bpt;
+use crate::integrator::pt::PathTracer;
+use crate::integrator::vcm::VertexCm;
+use crate::integrator::{Counters, Integrator, RenderContext};
 use crate::memory::MemoryError;
-use crate::options::{OptionError, OptionName, RenderOptions};
+use crate::options::{OptionError, OptionName, RenderOptions, Technique};
 use crate::scene::{Camera, LoadOptions, Scene, SceneError};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -59,6 +61,21 @@ pub enum RenderError {
     },
 }
 
+/// Creates the integrator for `ctx.options.technique`: the one place that chooses among them,
+/// above the integrators, so that their shared layer names none.
+pub fn create_integrator<'a>(ctx: RenderContext<'a>) -> Box<dyn Integrator + 'a> {
+    match ctx.options.technique {
+        Technique::Pt => Box::new(PathTracer::new(ctx)),
+        Technique::Bpt => Box::new(Bpt::new(ctx)),
+        Technique::Lt
+        | Technique::Ppm
+        | Technique::Bpm
+        | Technique::Vcm
+        | Technique::Upg
+        | Technique::UpgCamera => Box::new(VertexCm::new(ctx)),
+    }
+}
+
 /// Renders `iterations` iterations of `options.technique` and returns the film: the library
 /// call behind `vmerge render --iterations N` without progress, time limit or files.
 pub fn render_iterations(
@@ -69,7 +86,7 @@ pub fn render_iterations(
     let [width, height] = options.resolution.unwrap_or(scene.defaults.resolution);
     let camera = Camera::new(scene.camera(options.camera.as_deref())?, width, height);
     let mut film = Film::new(width, height);
-    let mut integrator = integrator::create(RenderContext {
+    let mut integrator = create_integrator(RenderContext {
         scene,
         camera,
         options,
@@ -91,6 +108,26 @@ pub struct StopAfter {
     pub time: Option<Duration>,
 }
 
+/// What the loop reports as it goes: progress after every iteration, and the problems it
+/// survived, for the caller to show (the library prints nothing).
+#[derive(Debug)]
+pub enum RunEvent<'a> {
+    Iteration(&'a Progress),
+    Warning(&'a RunWarning),
+}
+
+/// A problem a run survived: the render goes on, or is written.
+#[derive(Debug, Error)]
+pub enum RunWarning {
+    #[error("removed {}, a temporary file a stopped write left", .0.display())]
+    RemovedTemporary(PathBuf),
+    #[error("snapshot not written: {0}; rendering on, trying again at the next snapshot")]
+    SnapshotNotWritten(RenderError),
+    /// The preview is a convenience; the render itself is safe.
+    #[error("{0}; the render is written")]
+    PreviewNotWritten(FilmError),
+}
+
 /// What the loop reports after every iteration, for a progress display.
 #[derive(Clone, Debug)]
 pub struct Progress {
@@ -99,27 +136,9 @@ pub struct Progress {
     pub samples_per_second: f64,
     pub rays_per_second: f64,
     pub rmse: Option<f64>,
-    /// UPG's merges and tentative rays in this run (zero for the other techniques).
-    pub upg: UpgCounters,
-}
-
-impl Progress {
-    /// UPG's rates for the metadata and the progress line, when it merged at all.
-    pub fn upg_statistics(&self) -> Option<Vec<(String, String)>> {
-        let seconds = self.elapsed.as_secs_f64().max(1e-9);
-        (self.upg.merges > 0).then(|| {
-            vec![
-                (
-                    "upg_merges_per_second".into(),
-                    format!("{:.0}", self.upg.merges as f64 / seconds),
-                ),
-                (
-                    "upg_tentative_rays_per_second".into(),
-                    format!("{:.0}", self.upg.tentative_rays as f64 / seconds),
-                ),
-            ]
-        })
-    }
+    /// The technique's own work counts in this run ([`Integrator::counters`]): UPG's merges
+    /// and tentative rays, none for the other techniques.
+    pub counters: Counters,
 }
 
 /// The state of a render: its film, its metadata and what it needs to go on.
@@ -167,9 +186,9 @@ impl RenderJob<'_> {
         &mut self,
         stop: StopAfter,
         stop_flag: &StopFlag,
-        on_progress: impl FnMut(&Progress),
+        on_event: impl FnMut(RunEvent),
     ) -> Result<(), RenderError> {
-        self.run_observed(stop, stop_flag, None, on_progress)
+        self.run_observed(stop, stop_flag, None, on_event)
     }
 
     /// [`run`](Self::run), telling `observer` after every iteration.
@@ -178,7 +197,7 @@ impl RenderJob<'_> {
         stop: StopAfter,
         stop_flag: &StopFlag,
         mut observer: Option<&mut dyn Observer>,
-        mut on_progress: impl FnMut(&Progress),
+        mut on_event: impl FnMut(RunEvent),
     ) -> Result<(), RenderError> {
         if stop.iterations.is_none() && stop.time.is_none() {
             return Err(RenderError::NoStop);
@@ -186,10 +205,7 @@ impl RenderJob<'_> {
         crate::options::validate_run(stop.iterations, stop.time, self.snapshot_every)?;
         for path in self.written_paths() {
             for stale in crate::film::remove_stale_temporaries(&path) {
-                eprintln!(
-                    "removed {}, a temporary file a stopped write left",
-                    stale.display()
-                );
+                on_event(RunEvent::Warning(&RunWarning::RemovedTemporary(stale)));
             }
         }
         let camera = Camera::new(
@@ -197,7 +213,7 @@ impl RenderJob<'_> {
             self.film.width,
             self.film.height,
         );
-        let mut integrator = integrator::create(RenderContext {
+        let mut integrator = create_integrator(RenderContext {
             scene: self.scene,
             camera,
             options: &self.options,
@@ -208,7 +224,6 @@ impl RenderJob<'_> {
         let mut last_snapshot = start;
         let mut last_error = None::<Instant>;
         let mut rays = 0u64;
-        let mut upg = UpgCounters::default();
         let mut iterations_here = 0u64;
         let mut progress = None::<Progress>;
         // The output as of the last snapshot written, if one was.
@@ -224,7 +239,6 @@ impl RenderJob<'_> {
             self.film.add_iteration(&frame);
             iterations_here += 1;
             rays += stats.rays;
-            upg = upg + stats.upg;
             self.metadata.dropped_samples += stats.dropped_samples;
             self.metadata.iterations = self.film.iterations;
             let elapsed = start.elapsed();
@@ -245,27 +259,21 @@ impl RenderJob<'_> {
                     / seconds,
                 rays_per_second: rays as f64 / seconds,
                 rmse,
-                upg,
+                // The integrator is this run's, so its totals are the run's.
+                counters: integrator.counters(),
             };
-            on_progress(&now);
+            on_event(RunEvent::Iteration(&now));
             if let Some(observer) = observer.as_deref_mut() {
                 observer.after_iteration(&self.film, &self.metadata, &now);
             }
-            let statistics = |progress: &Progress| {
-                let mut all = integrator.statistics();
-                all.extend(progress.upg_statistics().unwrap_or_default());
-                all
-            };
             if self
                 .snapshot_every
                 .is_some_and(|every| last_snapshot.elapsed() >= every)
             {
-                self.metadata.statistics = statistics(&now);
+                self.metadata.statistics = integrator.statistics(now.elapsed);
                 match self.write() {
                     Ok(()) => last_good = Some(self.output.clone()),
-                    Err(e) => eprintln!(
-                        "warning: snapshot not written: {e}; rendering on, trying again at the next snapshot"
-                    ),
+                    Err(e) => on_event(RunEvent::Warning(&RunWarning::SnapshotNotWritten(e))),
                 }
                 last_snapshot = Instant::now();
             }
@@ -275,11 +283,10 @@ impl RenderJob<'_> {
         if iterations_here > 0 && recorded != Some(self.film.iterations) {
             record_error(&self.tracker, &self.film, &mut self.metadata);
         }
-        self.metadata.statistics = integrator.statistics();
-        if let Some(rates) = progress.as_ref().and_then(Progress::upg_statistics) {
-            self.metadata.statistics.extend(rates);
-        }
-        self.write_final(last_good)
+        // No iteration in this run: no work to give a rate of.
+        let elapsed = progress.as_ref().map_or(Duration::ZERO, |p| p.elapsed);
+        self.metadata.statistics = integrator.statistics(elapsed);
+        self.write_final(last_good, &mut on_event)
     }
 
     /// The files a write makes: the EXR and, if wanted, its preview.
@@ -294,7 +301,11 @@ impl RenderJob<'_> {
     /// Writes the final image; where that fails, writes it to the temporary directory and
     /// says so, and where that fails too, names the last good snapshot: the render is never
     /// lost silently.
-    fn write_final(&self, last_good: Option<PathBuf>) -> Result<(), RenderError> {
+    fn write_final(
+        &self,
+        last_good: Option<PathBuf>,
+        on_event: &mut impl FnMut(RunEvent),
+    ) -> Result<(), RenderError> {
         let Err(e) = exr::write_render(&self.output, &self.film, &self.metadata) else {
             if self.png {
                 let preview = self.output.with_extension("png");
@@ -302,8 +313,7 @@ impl RenderJob<'_> {
                 if let Err(e) =
                     png::write_preview(&preview, &mean, self.film.width, self.film.height)
                 {
-                    // The preview is a convenience; the render itself is safe.
-                    eprintln!("warning: {e}; the render is written");
+                    on_event(RunEvent::Warning(&RunWarning::PreviewNotWritten(e)));
                 }
             }
             return Ok(());

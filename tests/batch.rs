@@ -28,7 +28,9 @@ fn have(program: &str) -> bool {
         .status()
         .is_ok_and(|s| s.success());
     if !found {
-        eprintln!("skipped: {program} is not installed (scripts/setup-debian installs it)");
+        eprintln!(
+            "skipped: {program} is not installed (`scripts/setup-debian --tests` installs it)"
+        );
     }
     found
 }

@@ -336,3 +336,150 @@ fn shading_normals_keep_one_bsdf_for_both_sides() {
         }
     }
 }
+
+mod construction {
+    use vmerge::bsdf::{BsdfError, EnergyFix, MaterialKind, ParamProblem, Params};
+    use vmerge::color::Rgb;
+
+    fn every_kind() -> [MaterialKind; 4] {
+        [
+            MaterialKind::Lambert {
+                kd: Rgb::new(0.1, 0.2, 0.3),
+            },
+            MaterialKind::Phong {
+                kd: Rgb::splat(0.4),
+                ks: Rgb::new(0.5, 0.2, 0.1),
+                exponent: 30.0,
+            },
+            MaterialKind::Mirror {
+                ks: Rgb::splat(0.9),
+            },
+            MaterialKind::Glass { ior: 1.33 },
+        ]
+    }
+
+    #[test]
+    fn kinds_rebuild_from_their_name_and_parameters() {
+        for kind in every_kind() {
+            let name = kind.type_name();
+            assert!(MaterialKind::TYPE_NAMES.contains(&name));
+            assert_eq!(MaterialKind::from_params(name, &kind.params()), Ok(kind));
+        }
+    }
+
+    #[test]
+    fn absent_parameters_take_the_defaults() {
+        let none = Params::new();
+        for name in MaterialKind::TYPE_NAMES {
+            let kind = MaterialKind::from_params(name, &none).unwrap();
+            assert_eq!(kind.type_name(), *name);
+            let expected = match *name {
+                "lambert" => MaterialKind::Lambert {
+                    kd: Rgb::splat(0.8),
+                },
+                "phong" => MaterialKind::Phong {
+                    kd: Rgb::splat(0.8),
+                    ks: Rgb::BLACK,
+                    exponent: 1.0,
+                },
+                "mirror" => MaterialKind::Mirror { ks: Rgb::WHITE },
+                "glass" => MaterialKind::Glass { ior: 1.5 },
+                _ => continue,
+            };
+            assert_eq!(kind, expected);
+        }
+        // A number is a grey; parameters the type does not read are ignored.
+        let p = Params::new()
+            .with_number("kd", 0.25)
+            .with_number("ior", 2.0);
+        assert_eq!(
+            MaterialKind::from_params("lambert", &p),
+            Ok(MaterialKind::Lambert {
+                kd: Rgb::splat(0.25)
+            })
+        );
+    }
+
+    #[test]
+    fn errors_name_the_type_or_the_parameter() {
+        let e = MaterialKind::from_params("velvet", &Params::new()).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            format!(
+                "unknown material type 'velvet' ({})",
+                MaterialKind::TYPE_NAMES.join(", ")
+            )
+        );
+        assert!(e.to_string().contains("lambert, phong, mirror, glass"));
+        let e = MaterialKind::from_params("glass", &Params::new().with_number("ior", 0.0));
+        assert_eq!(
+            e,
+            Err(BsdfError::BadParameter {
+                type_name: "glass",
+                param: "ior",
+                problem: ParamProblem::NotPositive
+            })
+        );
+        let p = Params::new().with_color("exponent", Rgb::WHITE);
+        assert!(matches!(
+            MaterialKind::from_params("phong", &p),
+            Err(BsdfError::BadParameter {
+                problem: ParamProblem::NotANumber,
+                ..
+            })
+        ));
+        let p = Params::new().with_color("ks", Rgb::new(0.5, -0.1, 0.5));
+        assert!(MaterialKind::from_params("mirror", &p).is_err());
+        let p = Params::new().with_number("kd", f32::NAN);
+        assert!(MaterialKind::from_params("lambert", &p).is_err());
+    }
+
+    #[test]
+    fn energy_excess_scales_phong_and_clamps_single_reflectances() {
+        for kind in every_kind() {
+            assert_eq!(kind.energy_excess(), None);
+        }
+        let phong = MaterialKind::Phong {
+            kd: Rgb::new(0.8, 0.5, 0.2),
+            ks: Rgb::new(0.4, 0.2, 0.2),
+            exponent: 10.0,
+        };
+        let e = phong.energy_excess().unwrap();
+        assert_eq!((e.what, e.fix), ("kd + ks", EnergyFix::Scaled));
+        let MaterialKind::Phong { kd, ks, exponent } = e.conserving else {
+            panic!("{:?}", e.conserving)
+        };
+        assert_eq!(exponent, 10.0);
+        let scale = 1.0 / (0.8f32 + 0.4);
+        assert_eq!(kd, Rgb::new(0.8 * scale, 0.5, 0.2));
+        assert_eq!(ks, Rgb::new(0.4 * scale, 0.2, 0.2));
+        assert!(e.conserving.energy_excess().is_none());
+        let lambert = MaterialKind::Lambert {
+            kd: Rgb::new(1.5, 0.5, 1.0),
+        };
+        let e = lambert.energy_excess().unwrap();
+        assert_eq!((e.what, e.fix), ("kd", EnergyFix::Clamped));
+        assert_eq!(
+            e.conserving,
+            MaterialKind::Lambert {
+                kd: Rgb::new(1.0, 0.5, 1.0)
+            }
+        );
+    }
+
+    #[test]
+    fn textured_phong_keeps_kd_below_one_minus_ks() {
+        let phong = MaterialKind::Phong {
+            kd: Rgb::splat(0.5),
+            ks: Rgb::splat(0.3),
+            exponent: 10.0,
+        };
+        let a = phong.textured_albedo(Some(Rgb::splat(0.9)), None);
+        assert_eq!((a.kd, a.ks), (Rgb::splat(0.7), Rgb::splat(0.3)));
+        let a = phong.textured_albedo(Some(Rgb::splat(0.9)), Some(Rgb::splat(2.0)));
+        assert_eq!((a.kd, a.ks), (Rgb::BLACK, Rgb::WHITE));
+        let lambert = MaterialKind::Lambert { kd: Rgb::BLACK };
+        let a = lambert.textured_albedo(Some(Rgb::new(0.9, 1.5, -1.0)), None);
+        assert_eq!(a.kd, Rgb::new(0.9, 1.0, 0.0));
+    }
+}

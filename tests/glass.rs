@@ -125,6 +125,7 @@ fn pane_scene(accel: AccelKind) -> Scene {
         sky: None,
         env_map: None,
         inputs: Vec::new(),
+        warnings: Vec::new(),
         cameras: vec![CameraDesc {
             name: "pane".into(),
             position: Vec3::ZERO,

@@ -20,6 +20,7 @@ use vmerge::integrator::mis::{
     self, BptStep, BptVertex, ConnectionPdfs, Gather, LightSamplePdfs, Neighbour, Power, VcmVertex,
     VcmWeights, VmHere, NO_DENSITY,
 };
+use vmerge::integrator::subpath::PendingMis;
 use vmerge::integrator::upg::Deferred;
 use vmerge::light::Aim;
 use vmerge::options::DensityMis;

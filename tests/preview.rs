@@ -1,7 +1,7 @@
 //! The preview page: a running render's page updates in headless Chromium, the viewer shows
 //! two files split, the server answers its own routes only and is gone when the render ends.
 //!
-//! The browser tests need `chromium` (scripts/setup-debian installs it) and skip, saying so,
+//! The browser tests need `chromium` (`scripts/setup-debian --tests` installs it) and skip, saying so,
 //! without it.
 
 mod common;
@@ -88,7 +88,7 @@ fn chromium() -> Option<PathBuf> {
         .flat_map(|dir| ["chromium", "chromium-browser"].map(|name| dir.join(name)))
         .find(|p| p.is_file());
     if found.is_none() {
-        eprintln!("skipped: no chromium on PATH (scripts/setup-debian installs it)");
+        eprintln!("skipped: no chromium on PATH (`scripts/setup-debian --tests` installs it)");
     }
     found
 }
@@ -317,12 +317,82 @@ fn serves_its_routes_only_and_stops_with_the_render() {
         Some(403),
         "another site's name on loopback"
     );
-    assert_eq!(request(address, "GET", "/", "localhost:8080"), Some(200));
+    for host in [
+        format!("localhost:{}", address.port()),
+        format!("LOCALHOST:{}", address.port()),
+        format!("[::1]:{}", address.port()),
+    ] {
+        assert_eq!(request(address, "GET", "/", &host), Some(200), "{host}");
+    }
+    for host in [
+        format!("localhost:{}.evil.example", address.port()),
+        format!("127.0.0.1.evil.example:{}", address.port()),
+        format!("localhost:{}", address.port() ^ 1),
+        "localhost".to_string(),
+    ] {
+        assert_eq!(request(address, "GET", "/", &host), Some(403), "{host}");
+    }
 
     let status = served.child.wait().unwrap();
     assert!(status.success());
     assert!(out.is_file());
     assert!(closes(address), "the server outlived the render");
+}
+
+/// A client that asks for images and never reads the answers blocks a worker in a socket
+/// write; the render must still end within a second of writing its image.
+#[test]
+fn a_stalled_client_does_not_delay_the_exit() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("render.exr");
+    let mut served = Served::start(&[
+        "render".as_ref(),
+        scene("cornell-box").as_os_str(),
+        "--time".as_ref(),
+        "3s".as_ref(),
+        "--resolution".as_ref(),
+        "64x64".as_ref(),
+        "--no-png".as_ref(),
+        "-o".as_ref(),
+        out.as_os_str(),
+        "--preview=127.0.0.1:0".as_ref(),
+    ]);
+    let address = served.address;
+    let local = address.to_string();
+    let deadline = Instant::now() + Duration::from_secs(3);
+    while request(address, "GET", "/image/0", &local) != Some(200) {
+        assert!(Instant::now() < deadline, "no image after 3 s");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // Pipelined requests for 20 MB of answers, far beyond what the sockets buffer.
+    let mut stalled = TcpStream::connect(address).unwrap();
+    let one = format!("GET /image/0 HTTP/1.1\r\nHost: {local}\r\n\r\n");
+    stalled.write_all(one.repeat(400).as_bytes()).unwrap();
+    while !out.exists() {
+        assert!(
+            served.child.try_wait().unwrap().is_none(),
+            "ended without its image"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let written = Instant::now();
+    let status = loop {
+        if let Some(status) = served.child.try_wait().unwrap() {
+            break status;
+        }
+        assert!(
+            written.elapsed() < Duration::from_secs(10),
+            "still running 10 s after writing its image"
+        );
+        std::thread::sleep(Duration::from_millis(10));
+    };
+    let delay = written.elapsed();
+    assert!(status.success());
+    assert!(
+        delay < Duration::from_secs(1),
+        "ended {delay:?} after writing its image"
+    );
+    drop(stalled);
 }
 
 /// In the library: the server is gone once the render's preview is dropped, while the process

@@ -2,9 +2,10 @@
 
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext};
+use vmerge::integrator::RenderContext;
 use vmerge::options::Technique;
 use vmerge::options::{RenderOptions, SamplerKind};
+use vmerge::render::create_integrator;
 use vmerge::render::render_iterations;
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
@@ -35,7 +36,7 @@ fn furnace_is_one_everywhere() {
         ..Default::default()
     };
     let camera = Camera::new(scene.camera(None).unwrap(), width, height);
-    let mut pt = integrator::create(RenderContext {
+    let mut pt = create_integrator(RenderContext {
         scene: &scene,
         camera,
         options: &options,

@@ -7,8 +7,10 @@ mod common;
 use common::{assert_agree, floor_view, load, options, render_stats, standardised_rms};
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext};
+use vmerge::integrator::upg::UpgCounters;
+use vmerge::integrator::RenderContext;
 use vmerge::options::{RenderOptions, Technique};
+use vmerge::render::create_integrator;
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
 const UPG: [Technique; 2] = [Technique::Upg, Technique::UpgCamera];
@@ -133,11 +135,90 @@ fn load_with(name: &str, accel: AccelKind) -> Scene {
 fn packet_rays(scene: &Scene, o: &RenderOptions) -> u64 {
     let [w, h] = o.resolution.expect("tests set a resolution");
     let camera = Camera::new(scene.camera(o.camera.as_deref()).unwrap(), w, h);
-    let mut integrator = integrator::create(RenderContext {
+    let mut integrator = create_integrator(RenderContext {
         scene,
         camera,
         options: o,
     });
     let mut frame = vec![Rgb::BLACK; (w * h) as usize];
-    integrator.render_iteration(0, &mut frame).upg.packet_rays
+    integrator.render_iteration(0, &mut frame);
+    UpgCounters::from_named(&integrator.counters()).map_or(0, |upg| upg.packet_rays)
+}
+
+/// UPG's counters reach the progress report and the metadata through the integrator's named
+/// counters: the merges, their trials and tentative rays, their rates; `vcm` reports none.
+#[test]
+fn upg_counters_reach_the_progress_and_the_metadata() {
+    use vmerge::render::{NewRender, Progress, RunEvent, StopAfter, StopFlag};
+    let dir = tempfile::tempdir().unwrap();
+    for technique in [Technique::Upg, Technique::UpgCamera, Technique::Vcm] {
+        let setup = NewRender {
+            scene: format!(
+                "{}/scenes/cornell-box/scene.toml",
+                env!("CARGO_MANIFEST_DIR")
+            )
+            .into(),
+            options: RenderOptions {
+                technique,
+                resolution: Some([16, 16]),
+                ..Default::default()
+            },
+            accel: AccelKind::default_kind(),
+            lenient: false,
+            output: dir.path().join("render.exr"),
+            png: false,
+            snapshot_every: None,
+            reference: None,
+            traces: Vec::new(),
+            memory_limit: None,
+        };
+        let scene = setup.load_scene().unwrap();
+        let mut job = setup.job(&scene).unwrap();
+        let stop = StopAfter {
+            iterations: Some(2),
+            time: None,
+        };
+        let mut last = None::<Progress>;
+        job.run(stop, &StopFlag::default(), |event| {
+            if let RunEvent::Iteration(p) = event {
+                last = Some(p.clone());
+            }
+        })
+        .unwrap();
+        let progress = last.expect("a progress report per iteration");
+        let statistic = |name: &str| {
+            job.metadata
+                .statistics
+                .iter()
+                .find(|(n, _)| n == name)
+                .map(|(_, value)| value.clone())
+        };
+        let upg = UpgCounters::from_named(&progress.counters);
+        if technique == Technique::Vcm {
+            assert_eq!(upg, None);
+            assert!(
+                job.metadata
+                    .statistics
+                    .iter()
+                    .all(|(n, _)| !n.starts_with("upg_")),
+                "{:?}",
+                job.metadata.statistics
+            );
+            continue;
+        }
+        let upg = upg.unwrap_or_else(|| panic!("{technique:?}: no UPG merges reported"));
+        assert!(
+            upg.trials >= upg.merges && upg.tentative_rays > 0,
+            "{upg:?}"
+        );
+        assert_eq!(statistic("upg_merges"), Some(upg.merges.to_string()));
+        assert_eq!(statistic("upg_capped_merges"), Some(upg.capped.to_string()));
+        for name in [
+            "upg_trials_per_merge",
+            "upg_merges_per_second",
+            "upg_tentative_rays_per_second",
+        ] {
+            assert!(statistic(name).is_some(), "{technique:?}: no {name}");
+        }
+    }
 }

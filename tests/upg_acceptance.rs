@@ -1,7 +1,8 @@
 //! The acceptance estimator of UPG is unbiased: the mean of many estimates N/P matches 1/p_acc
 //! integrated numerically (000 eqs. 2.57, 2.65) for lambert and Phong lobes, oblique and
 //! near-grazing targets, short distances and an occluder. Packets and single rays agree trial
-//! for trial; the whole-lobe fallback is the BSDF's own sampling; the cap is reported.
+//! for trial; the whole-lobe fallback is the BSDF's own sampling; the cap is reported; each lobe
+//! shape's polar bound holds the probability of its interval.
 
 use glam::{DVec3, Vec3};
 use vmerge::accel::{Ray, PACKET};
@@ -647,5 +648,75 @@ fn the_bound_depends_on_the_lobe_shape_only() {
                 assert_eq!(trials(a), first, "{kind:?} {normals:?}: albedo {a:?}");
             }
         }
+    }
+}
+
+/// Each lobe shape's polar bound holds the probability its pdf integrates to over the interval,
+/// and its sampler stays inside and follows the polar CDF.
+#[test]
+fn polar_bounds_hold_the_lobe_probability() {
+    use vmerge::bsdf::{LobeShape, PolarInterval};
+    let (theta0, theta1) = (0.3f64, 0.7f64);
+    let interval = PolarInterval {
+        cos0: theta0.cos(),
+        sin0: theta0.sin(),
+        cos1: theta1.cos(),
+        sin1: theta1.sin(),
+        sin_width: None,
+    };
+    let narrow = PolarInterval {
+        sin_width: Some((theta1 - theta0).sin()),
+        ..interval
+    };
+    for (shape, pdf) in [
+        (
+            LobeShape::Cosine,
+            Box::new(|c: f64| c / std::f64::consts::PI) as Box<dyn Fn(f64) -> f64>,
+        ),
+        (
+            LobeShape::PowerCosine { exponent: 10.0 },
+            Box::new(|c: f64| 11.0 / (2.0 * std::f64::consts::PI) * c.powi(10)),
+        ),
+    ] {
+        // Midpoint rule over theta of pdf(theta) sin(theta) 2 pi.
+        let steps = 100_000;
+        let h = (theta1 - theta0) / steps as f64;
+        let integral: f64 = (0..steps)
+            .map(|i| {
+                let t = theta0 + (i as f64 + 0.5) * h;
+                pdf(t.cos()) * t.sin() * 2.0 * std::f64::consts::PI * h
+            })
+            .sum();
+        let bound = shape.polar_bound(&interval);
+        assert!(
+            (bound.mass() - integral).abs() < 1e-9,
+            "{shape:?}: {} vs {integral}",
+            bound.mass()
+        );
+        let narrow_mass = shape.polar_bound(&narrow).mass();
+        assert!((narrow_mass - integral).abs() < 1e-9, "{shape:?}");
+        // The CDF at the middle angle, against the share of a grid of u below it.
+        let mid = 0.5 * (theta0 + theta1);
+        let below: f64 = (0..steps / 2)
+            .map(|i| {
+                let t = theta0 + (i as f64 + 0.5) * h;
+                pdf(t.cos()) * t.sin() * 2.0 * std::f64::consts::PI * h
+            })
+            .sum::<f64>()
+            / integral;
+        let n = 10_000;
+        let mut count = 0;
+        for i in 0..n {
+            let (c, s) = bound.sample((i as f32 + 0.5) / n as f32);
+            assert!((c * c + s * s - 1.0).abs() < 1e-9);
+            let t = s.atan2(c);
+            assert!(t >= theta0 - 1e-6 && t <= theta1 + 1e-6, "{shape:?}: {t}");
+            count += (t < mid) as u32;
+        }
+        let share = count as f64 / n as f64;
+        assert!(
+            (share - below).abs() < 2e-3,
+            "{shape:?}: {share} vs {below}"
+        );
     }
 }

@@ -22,9 +22,17 @@
 //! Mitsuba 3 offsets by (1 + max |p_i|) 1500 2^-24, 2.9e-4 there, so to it every crossing of a
 //! bulb's wall (outer face wound outward, inner face towards the hollow) looks like entering.
 
-use super::{reflect_local, BsdfSample, TransportMode};
+use super::params::{number, BsdfError, EnergyExcess, ParamRange, ParamReader, ParamSpec, Params};
+use super::{reflect_local, Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobes, TransportMode};
 use crate::color::Rgb;
+use crate::frame::Frame;
 use glam::Vec3;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Glass {
+    /// Index of refraction inside (the side the normal points away from) over outside.
+    pub ior: f32,
+}
 
 /// Unpolarised Fresnel reflectance for light arriving at `cos_i` (local z of the incident
 /// direction, negative from inside) on an interface of relative index `eta` = n_inside /
@@ -64,34 +72,90 @@ pub fn refract_local(w: Vec3, eta: f32) -> Option<(Vec3, f32)> {
     Some((t.normalize(), eta))
 }
 
-/// `wo` local to the outward normal (negative z when leaving the glass).
-pub(super) fn sample(ior: f32, wo: Vec3, mode: TransportMode, u: f32) -> Option<BsdfSample> {
-    let reflectance = fresnel_dielectric(wo.z, ior);
-    if u < reflectance {
-        let wi = reflect_local(wo);
-        // f * |cos| / pdf = 1: the Fresnel weight cancels its own choice probability.
-        return Some(BsdfSample {
-            wi,
-            f: Rgb::splat(reflectance / wi.z.abs()),
-            pdf_w: reflectance,
-            rev_pdf_w: reflectance,
-            delta: true,
-        });
+impl BxdfType for Glass {
+    const NAME: &'static str = "glass";
+    const PARAMS: &'static [ParamSpec] = &[number("ior", 1.5, ParamRange::Positive)];
+
+    fn from_params(p: &ParamReader) -> Result<Self, BsdfError> {
+        Ok(Glass {
+            ior: p.number("ior")?,
+        })
     }
-    let (wi, eta) = refract_local(wo, ior)?;
-    let transmittance = 1.0 - reflectance;
-    // Radiance is compressed into the narrower solid angle of the denser medium: looking from
-    // the side of `wo` (index n_i) into the side of `wi` (index n_t), radiance scales by
-    // (n_i / n_t)^2. Importance does not (the adjoint BSDF, Veach's thesis sec. 5.2).
-    let scale = match mode {
-        TransportMode::Radiance => 1.0 / (eta * eta),
-        TransportMode::Importance => 1.0,
-    };
-    Some(BsdfSample {
-        wi,
-        f: Rgb::splat(transmittance * scale / wi.z.abs()),
-        pdf_w: transmittance,
-        rev_pdf_w: transmittance,
-        delta: true,
-    })
+}
+
+impl Bxdf for Glass {
+    fn params(&self) -> Params {
+        Params::new().with_number("ior", self.ior)
+    }
+
+    fn energy_excess(&self) -> Option<EnergyExcess> {
+        None
+    }
+
+    fn albedo(&self) -> Albedo {
+        Albedo {
+            kd: Rgb::BLACK,
+            ks: Rgb::BLACK,
+        }
+    }
+
+    fn with_albedo(&self, _: Albedo) -> Self {
+        *self
+    }
+
+    fn is_delta(&self) -> bool {
+        true
+    }
+
+    fn two_sided(&self) -> bool {
+        false
+    }
+
+    #[inline]
+    fn eval(&self, _: Vec3, _: Vec3, _: TransportMode) -> BsdfEval {
+        BsdfEval::ZERO
+    }
+
+    /// `wo` local to the outward normal (negative z when leaving the glass).
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3], mode: TransportMode) -> Option<BsdfSample> {
+        let ior = self.ior;
+        let reflectance = fresnel_dielectric(wo.z, ior);
+        if u[0] < reflectance {
+            let wi = reflect_local(wo);
+            // f * |cos| / pdf = 1: the Fresnel weight cancels its own choice probability.
+            return Some(BsdfSample {
+                wi,
+                f: Rgb::splat(reflectance / wi.z.abs()),
+                pdf_w: reflectance,
+                rev_pdf_w: reflectance,
+                delta: true,
+            });
+        }
+        let (wi, eta) = refract_local(wo, ior)?;
+        let transmittance = 1.0 - reflectance;
+        // Radiance is compressed into the narrower solid angle of the denser medium: looking from
+        // the side of `wo` (index n_i) into the side of `wi` (index n_t), radiance scales by
+        // (n_i / n_t)^2. Importance does not (the adjoint BSDF, Veach's thesis sec. 5.2).
+        let scale = match mode {
+            TransportMode::Radiance => 1.0 / (eta * eta),
+            TransportMode::Importance => 1.0,
+        };
+        Some(BsdfSample {
+            wi,
+            f: Rgb::splat(transmittance * scale / wi.z.abs()),
+            pdf_w: transmittance,
+            rev_pdf_w: transmittance,
+            delta: true,
+        })
+    }
+
+    fn continuation_albedo(&self) -> Rgb {
+        Rgb::WHITE
+    }
+
+    #[inline]
+    fn lobes(&self, _: Vec3, _: &Frame) -> Lobes {
+        Lobes::NONE
+    }
 }

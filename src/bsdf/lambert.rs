@@ -1,31 +1,96 @@
 //! Lambertian reflection, f = kd / pi, sampled by the cosine.
 
-use super::{BsdfEval, BsdfSample};
+use super::params::{clamp_to_one, color, BsdfError, EnergyExcess, EnergyFix, ParamReader, ParamSpec, Params};
+use super::{Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobe, LobeShape, Lobes, TransportMode};
 use crate::color::Rgb;
+use crate::frame::Frame;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
 use glam::Vec3;
 use std::f32::consts::FRAC_1_PI;
 
-/// `wo` and `wi` are local, `wo.z > 0`.
-pub(super) fn eval(kd: Rgb, wo: Vec3, wi: Vec3) -> BsdfEval {
-    if wi.z <= 0.0 {
-        return BsdfEval::ZERO;
-    }
-    BsdfEval {
-        f: kd * FRAC_1_PI,
-        pdf_w: cosine_hemisphere_pdf(wi.z),
-        rev_pdf_w: cosine_hemisphere_pdf(wo.z),
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lambert {
+    pub kd: Rgb,
+}
+
+impl BxdfType for Lambert {
+    const NAME: &'static str = "lambert";
+    const PARAMS: &'static [ParamSpec] = &[color("kd", 0.8)];
+
+    fn from_params(p: &ParamReader) -> Result<Self, BsdfError> {
+        Ok(Lambert { kd: p.color("kd")? })
     }
 }
 
-pub(super) fn sample(kd: Rgb, wo: Vec3, u: [f32; 2]) -> Option<BsdfSample> {
-    let wi = cosine_hemisphere(u);
-    let e = eval(kd, wo, wi);
-    (e.pdf_w > 0.0).then_some(BsdfSample {
-        wi,
-        f: e.f,
-        pdf_w: e.pdf_w,
-        rev_pdf_w: e.rev_pdf_w,
-        delta: false,
-    })
+impl Bxdf for Lambert {
+    fn params(&self) -> Params {
+        Params::new().with_color("kd", self.kd)
+    }
+
+    fn energy_excess(&self) -> Option<EnergyExcess> {
+        (self.kd.max_component() > 1.0).then(|| EnergyExcess {
+            what: "kd",
+            total: self.kd,
+            fix: EnergyFix::Clamped,
+            conserving: Lambert {
+                kd: clamp_to_one(self.kd),
+            }
+            .into(),
+        })
+    }
+
+    fn albedo(&self) -> Albedo {
+        Albedo {
+            kd: self.kd,
+            ks: Rgb::BLACK,
+        }
+    }
+
+    fn with_albedo(&self, albedo: Albedo) -> Self {
+        Lambert { kd: albedo.kd }
+    }
+
+    fn is_delta(&self) -> bool {
+        false
+    }
+
+    #[inline]
+    fn eval(&self, wo: Vec3, wi: Vec3, _: TransportMode) -> BsdfEval {
+        if wi.z <= 0.0 {
+            return BsdfEval::ZERO;
+        }
+        BsdfEval {
+            f: self.kd * FRAC_1_PI,
+            pdf_w: cosine_hemisphere_pdf(wi.z),
+            rev_pdf_w: cosine_hemisphere_pdf(wo.z),
+        }
+    }
+
+    #[inline]
+    fn sample(&self, wo: Vec3, u: [f32; 3], mode: TransportMode) -> Option<BsdfSample> {
+        let wi = cosine_hemisphere([u[1], u[2]]);
+        let e = self.eval(wo, wi, mode);
+        (e.pdf_w > 0.0).then_some(BsdfSample {
+            wi,
+            f: e.f,
+            pdf_w: e.pdf_w,
+            rev_pdf_w: e.rev_pdf_w,
+            delta: false,
+        })
+    }
+
+    fn continuation_albedo(&self) -> Rgb {
+        self.kd
+    }
+
+    #[inline]
+    fn lobes(&self, _: Vec3, frame: &Frame) -> Lobes {
+        let mut lobes = Lobes::NONE;
+        lobes.push(Lobe {
+            weight: 1.0,
+            axis: frame.z,
+            shape: LobeShape::Cosine,
+        });
+        lobes
+    }
 }

@@ -5,6 +5,13 @@
 //! (of sampling `wi` from `wo`) and the reverse pdf (of sampling `wo` from `wi`), all per solid
 //! angle: what the bidirectional integrators' MIS needs (001 sec. 3).
 //!
+//! Each BSDF type lives in its own file as a struct of its parameters implementing
+//! [`BxdfType`] (its scene-file name and parameters) and [`Bxdf`] (value, pdfs, sampling and
+//! sampling lobes in the local shading frame), and is registered by one line of the
+//! `registry!` below, which declares its [`MaterialKind`] variant and dispatches to it. `Bsdf`
+//! adds, once for every type, the shading frame, the shading-normal factor and world
+//! directions. Scene front-ends build kinds by type name and [`Params`], never by variant.
+//!
 //! Conventions:
 //! - `f` never includes the cosine; callers multiply by `|cos(n, wi)|`.
 //! - A delta (specular) lobe reports `pdf_w` = the discrete probability of choosing it, and `f`
@@ -34,39 +41,26 @@ use crate::color::Rgb;
 use crate::frame::Frame;
 use glam::Vec3;
 
-mod glass;
-mod lambert;
-mod mirror;
-mod phong;
+mod bxdf;
+mod lobe;
+mod params;
+#[macro_use]
+mod registry;
 
-/// The scattering part of a material.
-#[derive(Clone, Debug, PartialEq)]
-pub enum MaterialKind {
-    Lambert {
-        kd: Rgb,
-    },
+pub use bxdf::{Bxdf, BxdfType};
+pub use lobe::{Lobe, LobeShape, Lobes, PolarBound, PolarInterval};
+pub use params::{
+    BsdfError, EnergyExcess, EnergyFix, ParamKind, ParamProblem, ParamRange, ParamReader,
+    ParamSpec, ParamValue, Params,
+};
+
+// The BSDF types: one line each (registry.rs).
+registry! {
+    lambert::Lambert { kd: Rgb },
     /// Lafortune's energy-conserving Phong, f = kd/pi + ks (n+2)/(2 pi) cos^n(alpha) (000 eq. 3.1).
-    Phong {
-        kd: Rgb,
-        ks: Rgb,
-        exponent: f32,
-    },
-    Mirror {
-        ks: Rgb,
-    },
-    Glass {
-        ior: f32,
-    },
-}
-
-impl MaterialKind {
-    /// Mirror and glass scatter only into delta directions.
-    pub fn is_delta(&self) -> bool {
-        matches!(
-            self,
-            MaterialKind::Mirror { .. } | MaterialKind::Glass { .. }
-        )
-    }
+    phong::Phong { kd: Rgb, ks: Rgb, exponent: f32 },
+    mirror::Mirror { ks: Rgb },
+    glass::Glass { ior: f32 },
 }
 
 /// A named material: how it scatters and what it emits (radiance, one-sided, on the side the
@@ -113,46 +107,6 @@ pub struct BsdfSample {
     pub delta: bool,
 }
 
-/// The density of a non-delta lobe around its axis, on the hemisphere the axis points to.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum LobeShape {
-    /// cos(theta) / pi (lambert, Phong's diffuse part).
-    Cosine,
-    /// (n + 1) / (2 pi) cos^n(alpha) (Phong's glossy part).
-    PowerCosine { exponent: f32 },
-}
-
-/// One component of a BSDF's sampling mixture, in world space: what a sampler bounding the
-/// directions it may draw (UPG's tentative rays, 000 sec. 2.4.3) needs to know.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Lobe {
-    /// Probability that [`Bsdf::sample`] draws from this component.
-    pub weight: f32,
-    /// Unit axis: the frame's `z` for [`LobeShape::Cosine`], the mirror direction of `wo` for
-    /// [`LobeShape::PowerCosine`].
-    pub axis: Vec3,
-    pub shape: LobeShape,
-}
-
-/// The components of a BSDF's sampling mixture with positive weight: at most two, none for a
-/// delta BSDF.
-#[derive(Clone, Copy, Debug)]
-pub struct Lobes {
-    items: [Lobe; 2],
-    len: usize,
-}
-
-impl Lobes {
-    pub fn as_slice(&self) -> &[Lobe] {
-        &self.items[..self.len]
-    }
-
-    fn push(&mut self, lobe: Lobe) {
-        self.items[self.len] = lobe;
-        self.len += 1;
-    }
-}
-
 /// The albedos of a material at one surface point: the material's own colours, or what its
 /// textures give there.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -166,15 +120,7 @@ pub struct Albedo {
 impl Albedo {
     /// The constant colours of `kind`.
     pub fn of(kind: &MaterialKind) -> Self {
-        match *kind {
-            MaterialKind::Lambert { kd } => Albedo { kd, ks: Rgb::BLACK },
-            MaterialKind::Phong { kd, ks, .. } => Albedo { kd, ks },
-            MaterialKind::Mirror { ks } => Albedo { kd: Rgb::BLACK, ks },
-            MaterialKind::Glass { .. } => Albedo {
-                kd: Rgb::BLACK,
-                ks: Rgb::BLACK,
-            },
-        }
+        kind.albedo()
     }
 }
 
@@ -201,8 +147,9 @@ const MIN_GEOMETRIC_COS: f32 = 1e-6;
 #[derive(Clone, Debug)]
 pub struct Bsdf<'a> {
     kind: &'a MaterialKind,
-    albedo: Albedo,
-    /// Local frame around the shading normal (Lambert/Phong: flipped to the side of `wo`).
+    /// `kind` with the albedos at this point.
+    bxdf: MaterialKind,
+    /// Local frame around the shading normal (two-sided types: flipped to the side of `wo`).
     frame: Frame,
     /// The unit geometric normal, for [`Bsdf::cos_theta`].
     ng: Vec3,
@@ -240,12 +187,16 @@ impl<'a> Bsdf<'a> {
         if cos_so.abs() < 1e-6 {
             return None;
         }
-        let two_sided = !matches!(kind, MaterialKind::Glass { .. });
-        let z = if two_sided && cos_so < 0.0 { -ns } else { ns };
+        let bxdf = kind.with_albedo(albedo);
+        let z = if bxdf.two_sided() && cos_so < 0.0 {
+            -ns
+        } else {
+            ns
+        };
         let frame = Frame::from_z(z);
         Some(Bsdf {
             kind,
-            albedo,
+            bxdf,
             frame,
             ng,
             smooth,
@@ -272,14 +223,7 @@ impl<'a> Bsdf<'a> {
     /// Value and pdfs for `wi` (unit), non-delta lobes only.
     pub fn eval(&self, wi: Vec3) -> BsdfEval {
         let local = self.frame.to_local(wi);
-        let Albedo { kd, ks } = self.albedo;
-        let e = match *self.kind {
-            MaterialKind::Lambert { .. } => lambert::eval(kd, self.wo_local, local),
-            MaterialKind::Phong { exponent, .. } => {
-                phong::Phong::new(kd, ks, exponent).eval(self.wo_local, local)
-            }
-            MaterialKind::Mirror { .. } | MaterialKind::Glass { .. } => BsdfEval::ZERO,
-        };
+        let e = self.bxdf.eval(self.wo_local, local, self.mode);
         if self.smooth {
             BsdfEval {
                 f: e.f * self.shading_factor(wi, local),
@@ -292,15 +236,7 @@ impl<'a> Bsdf<'a> {
 
     /// Samples `wi` with the random numbers `u` (`u[0]` picks the lobe).
     pub fn sample(&self, u: [f32; 3]) -> Option<BsdfSample> {
-        let Albedo { kd, ks } = self.albedo;
-        let local = match *self.kind {
-            MaterialKind::Lambert { .. } => lambert::sample(kd, self.wo_local, [u[1], u[2]]),
-            MaterialKind::Phong { exponent, .. } => {
-                phong::Phong::new(kd, ks, exponent).sample(self.wo_local, u)
-            }
-            MaterialKind::Mirror { .. } => mirror::sample(ks, self.wo_local),
-            MaterialKind::Glass { ior } => glass::sample(ior, self.wo_local, self.mode, u[0]),
-        }?;
+        let local = self.bxdf.sample(self.wo_local, u, self.mode)?;
         let wi = self.frame.to_world(local.wi);
         let f = if self.smooth {
             local.f * self.shading_factor(wi, local.wi)
@@ -310,51 +246,17 @@ impl<'a> Bsdf<'a> {
         Some(BsdfSample { wi, f, ..local })
     }
 
-    /// The sampling mixture of a non-delta BSDF: [`Bsdf::sample`] picks a component by its
-    /// weight and draws from its density; a direction below the surface (`frame().z`) is
-    /// rejected (`None`). Empty for mirror and glass.
+    /// The sampling mixture: [`Bsdf::sample`] picks a component by its weight and draws from
+    /// its density; a direction below the surface (`frame().z`) is rejected (`None`). Empty
+    /// for mirror and glass; [`Lobes::UNBOUNDED`] for a type whose lobes have no closed-form
+    /// bound.
     pub fn lobes(&self) -> Lobes {
-        let unused = Lobe {
-            weight: 0.0,
-            axis: self.frame.z,
-            shape: LobeShape::Cosine,
-        };
-        let mut lobes = Lobes {
-            items: [unused; 2],
-            len: 0,
-        };
-        let diffuse = |weight| Lobe {
-            weight,
-            axis: self.frame.z,
-            shape: LobeShape::Cosine,
-        };
-        match *self.kind {
-            MaterialKind::Lambert { .. } => lobes.push(diffuse(1.0)),
-            MaterialKind::Phong { exponent, .. } => {
-                let Albedo { kd, ks } = self.albedo;
-                let phong = phong::Phong::new(kd, ks, exponent);
-                let pd = phong.diffuse_probability;
-                if pd > 0.0 {
-                    lobes.push(diffuse(pd));
-                }
-                if pd < 1.0 {
-                    lobes.push(Lobe {
-                        weight: 1.0 - pd,
-                        axis: self.frame.to_world(reflect_local(self.wo_local)),
-                        shape: LobeShape::PowerCosine {
-                            exponent: phong.exponent,
-                        },
-                    });
-                }
-            }
-            MaterialKind::Mirror { .. } | MaterialKind::Glass { .. } => {}
-        }
-        lobes
+        self.bxdf.lobes(self.wo_local, &self.frame)
     }
 
     /// True when every lobe is a delta (mirror, glass): no connection or merge can use it.
     pub fn is_delta(&self) -> bool {
-        self.kind.is_delta()
+        self.bxdf.is_delta()
     }
 
     /// `|cos|` between the geometric normal and `w`.
@@ -369,14 +271,7 @@ impl<'a> Bsdf<'a> {
     /// Probability of continuing the path at this vertex under Russian roulette: the
     /// largest albedo channel at this point, capped at 1.
     pub fn continuation_probability(&self) -> f32 {
-        let Albedo { kd, ks } = self.albedo;
-        let albedo = match *self.kind {
-            MaterialKind::Lambert { .. } => kd,
-            MaterialKind::Phong { .. } => kd + ks,
-            MaterialKind::Mirror { .. } => ks,
-            MaterialKind::Glass { .. } => Rgb::WHITE,
-        };
-        albedo.max_component().min(1.0)
+        self.bxdf.continuation_albedo().max_component().min(1.0)
     }
 
     /// The material's kind, with its constant colours (the albedos here may come from

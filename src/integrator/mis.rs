@@ -235,8 +235,8 @@ impl Neighbour {
 pub enum VmHere {
     Valid,
     Invalid,
-    /// Decided by a neighbour not traced yet: UPG keeps the merge's term aside
-    /// (`upg::Deferred`) until the sub-path's next vertex decides it.
+    /// Decided by a neighbour not traced yet: UPG keeps the merge's term aside (the sub-path's
+    /// pending MIS terms) until the sub-path's next vertex decides it.
     Deferred,
 }
 

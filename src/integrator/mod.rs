@@ -1,10 +1,15 @@
 //! Integrators. Each renders one iteration at a time into a per-pixel frame: one eye sub-path
 //! per pixel and, for the bidirectional ones, one light sub-path per pixel (001 sec. 2.3).
+//!
+//! Imports run downward here too: this file, `connection.rs`, `density.rs`, `mis.rs` and
+//! `subpath.rs` are the shared layer and name no technique; the techniques (`pt.rs`, `bpt.rs`,
+//! `vcm.rs`, `upg/`) name the shared layer, and only `vcm.rs` names `upg/`. The technique is
+//! chosen above this module, in `render.rs`.
 
 use crate::color::Rgb;
-use crate::options::{RenderOptions, Technique};
+use crate::options::RenderOptions;
 use crate::scene::{Camera, Scene};
-use upg::UpgCounters;
+use std::time::Duration;
 
 pub mod bpt;
 pub mod connection;
@@ -15,14 +20,14 @@ pub mod subpath;
 pub mod upg;
 pub mod vcm;
 
-/// Counters an iteration reports besides its image.
+/// Counters every technique reports of an iteration besides its image; a technique's own
+/// counters go through [`Integrator::counters`].
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct IterationStats {
     /// Samples dropped for being NaN or infinite.
     pub dropped_samples: u64,
     /// Rays traced (closest-hit, shadow and tentative), for the samples-per-second display.
     pub rays: u64,
-    pub upg: UpgCounters,
 }
 
 impl std::ops::Add for IterationStats {
@@ -31,7 +36,6 @@ impl std::ops::Add for IterationStats {
         IterationStats {
             dropped_samples: self.dropped_samples + other.dropped_samples,
             rays: self.rays + other.rays,
-            upg: self.upg + other.upg,
         }
     }
 }
@@ -63,22 +67,34 @@ impl RenderContext<'_> {
 pub trait Integrator: Send + Sync {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats;
 
-    /// Technique-specific statistics for the metadata and the progress line.
-    fn statistics(&self) -> Vec<(String, String)> {
+    /// Technique-specific statistics for the metadata; the time since the run began gives
+    /// their rates.
+    fn statistics(&self, _elapsed: Duration) -> Vec<(String, String)> {
         Vec::new()
+    }
+
+    /// The technique's own work counts, totals over the iterations rendered so far, for the
+    /// progress line, the live preview and the metadata's rates; none by default.
+    fn counters(&self) -> Counters {
+        Counters::default()
     }
 }
 
-/// Creates the integrator for `ctx.options.technique`.
-pub fn create<'a>(ctx: RenderContext<'a>) -> Box<dyn Integrator + 'a> {
-    match ctx.options.technique {
-        Technique::Pt => Box::new(pt::PathTracer::new(ctx)),
-        Technique::Bpt => Box::new(bpt::Bpt::new(ctx)),
-        Technique::Lt
-        | Technique::Ppm
-        | Technique::Bpm
-        | Technique::Vcm
-        | Technique::Upg
-        | Technique::UpgCamera => Box::new(vcm::VertexCm::new(ctx)),
+/// Work counts a technique keeps of its own (UPG's merges and tentative rays), by name: what
+/// they mean is the technique's to say, the render loop only hands them on.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct Counters(Vec<(&'static str, u64)>);
+
+impl Counters {
+    pub fn new(counts: Vec<(&'static str, u64)>) -> Self {
+        Counters(counts)
+    }
+
+    /// The count named `name`, if the technique reports one.
+    pub fn get(&self, name: &str) -> Option<u64> {
+        self.0
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|&(_, count)| count)
     }
 }

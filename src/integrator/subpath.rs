@@ -1,9 +1,9 @@
 //! The sub-path state of the vertex-merging family (SmallVCM's SubPathState and PathVertex):
 //! what `vcm.rs` carries while tracing and stores of light sub-paths, and what the UPG merges
-//! (`upg/merge.rs`) read back.
+//! (`upg/merge.rs`) read back. What a technique keeps per vertex beside it is a type parameter,
+//! `P` (a [`PendingMis`]), so that this layer names no technique.
 
 use super::mis::{VcmVertex, VcmWeights};
-use super::upg::Deferred;
 use super::IterationStats;
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, Normals, TransportMode};
@@ -13,9 +13,18 @@ use crate::scene::{Scene, SurfaceHit};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
 
+/// MIS terms a technique keeps per sub-path vertex beside its [`VcmVertex`] whose value only a
+/// use of the vertex decides: a merge at the previous vertex gathered from the other side
+/// (000 eqs. 2.81-2.82).
+pub trait PendingMis: Copy + Send + Sync {
+    /// `v`, the vertex's MIS quantities, with the pending terms added once a use of the vertex
+    /// fixes `rev_pdf_w`, the pdf with which it samples its predecessor.
+    fn settle(&self, w: &VcmWeights, v: VcmVertex, rev_pdf_w: f32) -> VcmVertex;
+}
+
 /// A stored light sub-path vertex: everything a connection or a merge needs.
-#[derive(Clone, Copy, Debug)]
-pub struct LightVertex {
+#[derive(Copy, Debug)]
+pub struct LightVertex<P> {
     pub position: Vec3,
     /// Geometric normal.
     pub ng: Vec3,
@@ -29,8 +38,9 @@ pub struct LightVertex {
     /// Segments from the light to this vertex.
     pub path_length: u32,
     pub mis: VcmVertex,
-    /// `upg-camera`'s merge at the previous vertex, awaiting this one's reverse pdf.
-    pub deferred: Deferred,
+    /// The pending MIS terms (`upg-camera`'s merge at the previous vertex), awaiting this
+    /// vertex's reverse pdf.
+    pub pending: P,
     /// The density factor of a merge here (002; 1 without the density map).
     pub rho: f32,
     /// The previous vertex of the sub-path is a non-delta surface vertex, stored just before
@@ -48,8 +58,16 @@ pub struct MergeVertex {
     pub mis: VcmVertex,
 }
 
-impl From<&LightVertex> for MergeVertex {
-    fn from(v: &LightVertex) -> Self {
+// A bitwise copy: the derived `Clone` of a generic type clones field by field, which filling
+// the light paths' storage (`LightPaths::refill`) would pay for every vertex.
+impl<P: Copy> Clone for LightVertex<P> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+
+impl<P> From<&LightVertex<P>> for MergeVertex {
+    fn from(v: &LightVertex<P>) -> Self {
         MergeVertex {
             wo: v.wo,
             throughput: v.throughput,
@@ -59,7 +77,7 @@ impl From<&LightVertex> for MergeVertex {
     }
 }
 
-impl LightVertex {
+impl<P: PendingMis> LightVertex<P> {
     /// The vertex's BSDF, as the light sub-path scattered there.
     pub fn bsdf<'s>(&self, scene: &'s Scene) -> Option<Bsdf<'s>> {
         let normals = Normals {
@@ -78,13 +96,13 @@ impl LightVertex {
     /// The MIS quantities once a use of the vertex fixes `rev_pdf_w`, the pdf with which it
     /// samples its predecessor.
     pub fn mis_at(&self, w: &VcmWeights, rev_pdf_w: f32) -> VcmVertex {
-        self.deferred.settle(w, self.mis, rev_pdf_w)
+        self.pending.settle(w, self.mis, rev_pdf_w)
     }
 }
 
 /// The state of a sub-path being traced.
 #[derive(Clone, Copy, Debug)]
-pub struct SubPath {
+pub struct SubPath<P> {
     pub ray: Ray,
     pub throughput: Rgb,
     pub path_length: u32,
@@ -95,18 +113,18 @@ pub struct SubPath {
     /// The vertex the ray left from is a non-delta surface vertex.
     pub prev_surface: bool,
     pub mis: VcmVertex,
-    /// A UPG merge at the previous vertex gathered from the other side (`upg` on eye
-    /// sub-paths, `upg-camera` on light sub-paths).
-    pub deferred: Deferred,
+    /// The pending MIS terms: a UPG merge at the previous vertex gathered from the other side
+    /// (`upg` on eye sub-paths, `upg-camera` on light sub-paths).
+    pub pending: P,
     /// The density factor rho of a merge at the current vertex and its 1 / k (002; 1 and 0
     /// without the density map).
     pub density: (f32, f32),
 }
 
-impl SubPath {
+impl<P: PendingMis> SubPath<P> {
     /// [`LightVertex::mis_at`] of the sub-path's current vertex.
     pub fn mis_at(&self, w: &VcmWeights, rev_pdf_w: f32) -> VcmVertex {
-        self.deferred.settle(w, self.mis, rev_pdf_w)
+        self.pending.settle(w, self.mis, rev_pdf_w)
     }
 }
 
@@ -124,15 +142,25 @@ pub struct EyeVertex<'b> {
 
 /// What one task of the light pass produces: its vertices, where each of its paths ends, its
 /// camera splats and counters.
-#[derive(Default)]
-pub struct LightChunk {
-    pub vertices: Vec<LightVertex>,
+pub struct LightChunk<P> {
+    pub vertices: Vec<LightVertex<P>>,
     pub ends: Vec<u32>,
     pub splats: Splats,
     pub stats: IterationStats,
 }
 
-impl LightChunk {
+impl<P> Default for LightChunk<P> {
+    fn default() -> Self {
+        LightChunk {
+            vertices: Vec::new(),
+            ends: Vec::new(),
+            splats: Splats::default(),
+            stats: IterationStats::default(),
+        }
+    }
+}
+
+impl<P> LightChunk<P> {
     /// Empties the chunk for the next iteration, keeping its storage.
     pub fn clear(&mut self) {
         self.vertices.clear();
@@ -143,20 +171,28 @@ impl LightChunk {
 }
 
 /// The light sub-paths of one iteration: every stored vertex, path after path.
-#[derive(Default)]
-pub struct LightPaths {
-    pub vertices: Vec<LightVertex>,
+pub struct LightPaths<P> {
+    pub vertices: Vec<LightVertex<P>>,
     /// Where each path's vertices begin, and one past the last path's.
     path_ends: Vec<usize>,
 }
 
-impl LightPaths {
+impl<P> Default for LightPaths<P> {
+    fn default() -> Self {
+        LightPaths {
+            vertices: Vec::new(),
+            path_ends: Vec::new(),
+        }
+    }
+}
+
+impl<P: PendingMis> LightPaths<P> {
     /// Replaces the paths by the chunks' in order (so the result does not depend on the
     /// threads), adding their camera splats to `frame` and their counters to `stats`. The
     /// storage is kept from one iteration to the next.
     pub fn refill(
         &mut self,
-        chunks: &mut [LightChunk],
+        chunks: &mut [LightChunk<P>],
         frame: &mut [Rgb],
         stats: &mut IterationStats,
     ) {
@@ -201,7 +237,7 @@ impl LightPaths {
     /// there is one per pixel, the paths taken in turn when there are fewer, and each pixel's own
     /// when there are more (the rest are merged and splatted only). Every eye sub-path connects
     /// to one light sub-path either way (n_VC = 1).
-    pub fn for_pixel(&self, pixel: usize) -> &[LightVertex] {
+    pub fn for_pixel(&self, pixel: usize) -> &[LightVertex<P>] {
         let path = pixel % (self.path_ends.len() - 1).max(1);
         match self.path_ends.get(path..path + 2) {
             Some(&[start, end]) => &self.vertices[start..end],

@@ -23,11 +23,11 @@
 use super::connection::{Connection, LightSample};
 use super::density::DensityMap;
 use super::mis::{ConnectionPdfs, Gather, Neighbour, Power, VcmWeights, VmHere, NO_DENSITY};
-use super::subpath::{EyeVertex, LightChunk, LightPaths, LightVertex, MergeVertex, SubPath};
+use super::subpath::{self, EyeVertex, MergeVertex};
 use super::upg::acceptance::{Estimator, PacketWidth};
 use super::upg::merge::{Gathered, Tentative, UpgMerges};
 use super::upg::{Deferred, UpgCounters};
-use super::{Integrator, IterationStats, RenderContext};
+use super::{Counters, Integrator, IterationStats, RenderContext};
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
@@ -39,6 +39,7 @@ use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
 use rayon::prelude::*;
+use std::time::Duration;
 
 /// Light paths traced by one parallel task. Fixed, so results do not depend on threads.
 const LIGHT_CHUNK: usize = 256;
@@ -101,6 +102,14 @@ impl Modes {
         }
     }
 }
+
+/// The sub-path state of this family: its pending MIS terms are UPG's deferred merges (none
+/// for the density-estimate merges).
+type SubPath = subpath::SubPath<Deferred>;
+/// The light vertex this family stores (its size bounds the memory a render needs).
+pub type LightVertex = subpath::LightVertex<Deferred>;
+type LightChunk = subpath::LightChunk<Deferred>;
+type LightPaths = subpath::LightPaths<Deferred>;
 
 /// Storage kept from one iteration to the next, so the steady state allocates nothing.
 #[derive(Default)]
@@ -260,7 +269,7 @@ impl<'a> VertexCm<'a> {
             specular: false,
             prev_surface: false,
             mis: w.light_origin(direct_pdf_a, emission_pdf_w, cos_at_light, light.is_delta()),
-            deferred: Deferred::NONE,
+            pending: Deferred::NONE,
             density: NO_DENSITY,
         })
     }
@@ -271,7 +280,7 @@ impl<'a> VertexCm<'a> {
         let with_distance = !light_side || state.path_length > 1 || state.finite_light;
         let cos = hit.ng.dot(-state.ray.dir.normalize()).abs();
         let arrival = w.arrive(&mut state.mis, distance, cos, with_distance);
-        state.deferred.arrive(arrival);
+        state.pending.arrive(arrival);
     }
 
     /// Continues a sub-path by sampling the BSDF (SmallVCM's SampleScattering; 001 eqs. 34-36,
@@ -306,7 +315,7 @@ impl<'a> VertexCm<'a> {
             s.delta,
             (here == VmHere::Valid, state.density.0),
         );
-        state.deferred = if !s.delta && here == VmHere::Deferred {
+        state.pending = if !s.delta && here == VmHere::Deferred {
             Deferred::new(w, ratio, cos_out)
         } else {
             Deferred::NONE
@@ -355,7 +364,7 @@ impl<'a> VertexCm<'a> {
             let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Importance) else {
                 break;
             };
-            state.deferred.keep_if(!bsdf.is_delta());
+            state.pending.keep_if(!bsdf.is_delta());
             state.density = NO_DENSITY;
             if !bsdf.is_delta() {
                 state.density = self.density_at(w, hit.position, &mut state);
@@ -370,7 +379,7 @@ impl<'a> VertexCm<'a> {
                         material: hit.material,
                         path_length: state.path_length,
                         mis: state.mis,
-                        deferred: state.deferred,
+                        pending: state.pending,
                         rho: state.density.0,
                         after_surface: state.prev_surface,
                     });
@@ -702,7 +711,7 @@ impl<'a> VertexCm<'a> {
             specular: true,
             prev_surface: false,
             mis: w.camera_origin(camera_pdf_w),
-            deferred: Deferred::NONE,
+            pending: Deferred::NONE,
             density: NO_DENSITY,
         };
         let max_length = self.ctx.max_path_length();
@@ -733,7 +742,7 @@ impl<'a> VertexCm<'a> {
             let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Radiance) else {
                 break;
             };
-            state.deferred.keep_if(!bsdf.is_delta());
+            state.pending.keep_if(!bsdf.is_delta());
             state.density = NO_DENSITY;
             if !bsdf.is_delta() {
                 state.density = self.density_at(w, hit.position, &mut state);
@@ -831,7 +840,7 @@ impl Integrator for VertexCm<'_> {
             grid,
             merge_vertices,
         };
-        let eye_stats = frame
+        let (eye_stats, upg) = frame
             .par_iter_mut()
             .enumerate()
             .with_max_len(EYE_TASK)
@@ -842,12 +851,12 @@ impl Integrator for VertexCm<'_> {
                     let mut stats = IterationStats::default();
                     let color = self.trace_eye_path(&pass, pixel, tentative, &mut stats);
                     add_sample(value, color, &mut stats.dropped_samples);
-                    stats
+                    (stats, tentative.take_counters())
                 },
             )
-            .reduce(IterationStats::default, |a, b| a + b);
+            .reduce(Default::default, |(a, u), (b, v)| (a + b, u + v));
         let stats = stats + eye_stats;
-        self.upg = self.upg + stats.upg;
+        self.upg = self.upg + upg;
         // Filled after the eye pass, so every technique of this iteration saw the same map.
         if let Some(map) = &mut self.density {
             if map.is_filling() && u64::from(map.iterations()) == iteration {
@@ -858,7 +867,7 @@ impl Integrator for VertexCm<'_> {
         stats
     }
 
-    fn statistics(&self) -> Vec<(String, String)> {
+    fn statistics(&self, elapsed: Duration) -> Vec<(String, String)> {
         let paths = self.light_paths().max(1);
         let mut stats = vec![
             (
@@ -880,6 +889,15 @@ impl Integrator for VertexCm<'_> {
         if let Some(map) = &self.density {
             stats.extend(map.statistics());
         }
+        stats.extend(self.upg.rates(elapsed));
         stats
+    }
+
+    fn counters(&self) -> Counters {
+        if self.modes.gather == Gather::Density {
+            Counters::default()
+        } else {
+            self.upg.named()
+        }
     }
 }

@@ -13,7 +13,7 @@
 //! The silhouette pays where every light vertex is worth its cost alone (light tracing and
 //! photon mapping: each vertex is one camera connection or waits in the grid); where every eye
 //! vertex connects to every vertex of a light sub-path (bpt, vcm), each further vertex costs
-//! shadow rays, most of them on the box's outside, and the disc renders sooner (README,
+//! shadow rays, most of them on the box's outside, and the disc renders sooner (docs/performance.md,
 //! "Light sub-paths of infinite lights").
 
 use crate::frame::Frame;

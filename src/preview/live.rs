@@ -4,6 +4,7 @@
 use super::server::{Content, Server, StateQuery};
 use super::{error_rows, ImageData, PreviewError};
 use crate::film::{Film, Metadata};
+use crate::integrator::upg::UpgCounters;
 use crate::render::{Observer, Progress, RenderJob, StopAfter};
 use serde::Serialize;
 use std::net::SocketAddr;
@@ -202,6 +203,12 @@ impl LivePreview {
         self.server.address()
     }
 
+    /// A warning for the user when the page is reachable from other machines (see
+    /// [`Server::warning`]).
+    pub fn warning(&self) -> Option<String> {
+        self.server.warning()
+    }
+
     fn progress_view(&self, progress: &Progress) -> ProgressView {
         let elapsed = progress.elapsed.as_secs_f64();
         let here = progress
@@ -218,7 +225,7 @@ impl LivePreview {
             (a, b) => a.or(b),
         };
         let seconds = elapsed.max(1e-9);
-        let upg = (progress.upg.merges > 0).then_some(progress.upg);
+        let upg = UpgCounters::from_named(&progress.counters);
         ProgressView {
             iteration: progress.iterations,
             elapsed,

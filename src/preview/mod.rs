@@ -3,9 +3,11 @@
 //!
 //! The page tone-maps in the browser from the linear pixels (little-endian f32 RGB), so the
 //! server only copies and converts. Safe by default: it binds where it is told (loopback
-//! unless an address is given), answers its own routes only (`/`, `/state`, `/image/N`, nothing
-//! taken from the request names a file), refuses foreign `Host` names on loopback (so another
-//! site cannot read it through DNS rebinding), and the page loads nothing from the network:
+//! unless an address is given, with a warning for the caller to show otherwise), answers its
+//! own routes only (`/`, `/state`, `/image/N`, nothing taken from the request names a file),
+//! refuses on loopback any `Host` but a loopback name with the port served (so another site
+//! cannot read it through DNS rebinding), lets no stalled client hold up its stopping, and
+//! the page loads nothing from the network:
 //! its script and style are embedded in the binary and its Content-Security-Policy forbids the
 //! rest. The render loop sees it only through [`crate::render::Observer`].
 

@@ -2,10 +2,12 @@
 
 use super::ImageData;
 use std::io::{Cursor, Read};
-use std::net::SocketAddr;
+use std::net::{Ipv4Addr, Ipv6Addr, SocketAddr};
 use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc::{self, Receiver, Sender};
 use std::sync::Arc;
 use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
 use thiserror::Error;
 use tiny_http::{Header, Method, Request, Response, ResponseBox};
 
@@ -23,6 +25,12 @@ const PAGE: &str = include_str!("page.html");
 
 /// Threads answering requests; a long poll holds one for up to [`super::live::LONG_POLL`].
 const WORKERS: usize = 4;
+
+/// How long stopping waits for responses still being written. A client that asked for an
+/// image and stopped reading blocks its worker in a socket write that nothing here can
+/// interrupt; such a worker is left behind rather than waited for, so it cannot hold up the
+/// end of the process (which ends it).
+const DRAIN: Duration = Duration::from_millis(250);
 
 /// What the page's `/state?since=F&errors=K` asks: wait for a frame newer than `F` (when
 /// given), and send the error series from sample `K` on.
@@ -46,6 +54,18 @@ pub struct Server {
     http: Arc<tiny_http::Server>,
     stop: Arc<AtomicBool>,
     workers: Vec<JoinHandle<()>>,
+    /// One message from each worker as it ends (a panic included).
+    ended: Receiver<()>,
+}
+
+/// Tells the server that its worker ended, however it ended.
+struct Ended(Sender<()>);
+
+impl Drop for Ended {
+    fn drop(&mut self) {
+        // The server may be gone already, having stopped waiting.
+        let _ = self.0.send(());
+    }
 }
 
 impl Server {
@@ -61,21 +81,27 @@ impl Server {
             .ok_or_else(|| bind("not an IP socket".into()))?;
         let http = Arc::new(http);
         let stop = Arc::new(AtomicBool::new(false));
-        let loopback = bound.ip().is_loopback();
+        // On loopback, the port a browser must name in `Host`.
+        let loopback = bound.ip().is_loopback().then_some(bound.port());
+        let (ending, ended) = mpsc::channel();
         let mut workers = Vec::with_capacity(WORKERS);
         for _ in 0..WORKERS {
             let (serving, content, stopping) = (http.clone(), content.clone(), stop.clone());
+            let ending = Ended(ending.clone());
             let worker = std::thread::Builder::new()
                 .name("preview-http".into())
-                .spawn(move || loop {
-                    match serving.recv() {
-                        // A client that went away needs no answer.
-                        Ok(request) => {
+                .spawn(move || {
+                    // Locals drop in reverse: the server's handle goes before the message.
+                    let _ending = ending;
+                    let (serving, content) = (serving, content);
+                    // A worker freed from a stalled client after `drop` must not wait for
+                    // requests again: the wake-ups went to the others.
+                    while !stopping.load(Ordering::SeqCst) {
+                        // A failed accept stops nothing else; a client that went away needs
+                        // no answer.
+                        if let Ok(request) = serving.recv() {
                             let _ = answer_request(request, &*content, loopback);
                         }
-                        // Unblocked by `drop`, or a failed accept, which stops nothing else.
-                        Err(_) if stopping.load(Ordering::SeqCst) => break,
-                        Err(_) => {}
                     }
                 });
             match worker {
@@ -87,6 +113,7 @@ impl Server {
                         http,
                         stop,
                         workers,
+                        ended,
                     });
                     return Err(bind(format!("cannot start a thread: {e}")));
                 }
@@ -97,6 +124,7 @@ impl Server {
             http,
             stop,
             workers,
+            ended,
         })
     }
 
@@ -104,6 +132,24 @@ impl Server {
     pub fn address(&self) -> SocketAddr {
         self.address
     }
+
+    /// A warning for the user when the page is reachable from other machines, for the caller
+    /// to show: bound to loopback it is `None`.
+    pub fn warning(&self) -> Option<String> {
+        exposure_warning(self.address)
+    }
+}
+
+fn exposure_warning(address: SocketAddr) -> Option<String> {
+    if address.ip().is_loopback() {
+        return None;
+    }
+    Some(format!(
+        "the preview at {address} is reachable from the network, not only from this machine: \
+         anyone who can connect to the port sees the image, the scene's path and the render's \
+         options, without a password (bind 127.0.0.1 and forward the port over SSH to keep it \
+         private)"
+    ))
 }
 
 impl Drop for Server {
@@ -113,15 +159,33 @@ impl Drop for Server {
         for _ in &self.workers {
             self.http.unblock();
         }
-        for worker in self.workers.drain(..) {
-            // A worker that panicked has nothing left to clean up.
-            let _ = worker.join();
+        let deadline = Instant::now() + DRAIN;
+        let mut ended = 0;
+        while ended < self.workers.len() {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if self.ended.recv_timeout(left).is_err() {
+                break;
+            }
+            ended += 1;
         }
-        // `http` goes after this, the last handle on the listener, which closes it.
+        let all = ended == self.workers.len();
+        for worker in self.workers.drain(..) {
+            // One still writing to a stalled client is left to end with the process (dropping
+            // its handle detaches it); one that panicked has nothing left to clean up.
+            if all || worker.is_finished() {
+                let _ = worker.join();
+            }
+        }
+        // `http` goes after this; the listener closes with its last handle, a detached
+        // worker's if there is one.
     }
 }
 
-fn answer_request(request: Request, content: &dyn Content, loopback: bool) -> std::io::Result<()> {
+fn answer_request(
+    request: Request,
+    content: &dyn Content,
+    loopback: Option<u16>,
+) -> std::io::Result<()> {
     let response = route(&request, content, loopback);
     request.respond(response)
 }
@@ -157,8 +221,8 @@ fn text(status: u16, body: &str) -> ResponseBox {
     )
 }
 
-fn route(request: &Request, content: &dyn Content, loopback: bool) -> ResponseBox {
-    if loopback && !host_is_loopback(request) {
+fn route(request: &Request, content: &dyn Content, loopback: Option<u16>) -> ResponseBox {
+    if loopback.is_some_and(|port| !host_is_loopback(request, port)) {
         return text(403, "this server answers to localhost only\n");
     }
     if *request.method() != Method::Get {
@@ -231,26 +295,47 @@ fn parse_query(query: &str) -> Option<StateQuery> {
     Some(q)
 }
 
-/// Whether the request's `Host` names this machine's loopback (any port: an SSH tunnel may
-/// forward another one). A browser always sends it; a page of another site that resolves its
-/// own name to 127.0.0.1 sends that name, and is refused.
-fn host_is_loopback(request: &Request) -> bool {
-    let Some(host) = request
-        .headers()
-        .iter()
-        .find(|h| h.field.equiv("Host"))
-        .map(|h| h.value.as_str())
-    else {
-        return true;
+/// Whether the request's `Host` names this machine's loopback and the port served. A browser
+/// always sends it; a page of another site that resolves its own name to 127.0.0.1 sends that
+/// name, and is refused. It is parsed whole (a name or address, then `:port` or nothing), not
+/// matched by prefix, so `localhost:80.evil.example` is refused too. An SSH tunnel must keep
+/// the port number (`-L PORT:localhost:PORT`).
+fn host_is_loopback(request: &Request, port: u16) -> bool {
+    match request.headers().iter().find(|h| h.field.equiv("Host")) {
+        Some(h) => host_allowed(h.value.as_str(), port),
+        // Not a browser, so not a page of another site.
+        None => true,
+    }
+}
+
+/// `Host` is `name[:port]` or `[ipv6][:port]`; without a port it means HTTP's default, 80.
+fn host_allowed(host: &str, port: u16) -> bool {
+    let (name, given) = match host.strip_prefix('[') {
+        Some(rest) => {
+            let Some((inside, after)) = rest.split_once(']') else {
+                return false;
+            };
+            let loopback = inside.parse::<Ipv6Addr>().is_ok_and(|ip| ip.is_loopback());
+            (loopback.then_some(""), after)
+        }
+        None => {
+            let (name, after) = match host.find(':') {
+                Some(colon) => host.split_at(colon),
+                None => (host, ""),
+            };
+            let loopback = name.eq_ignore_ascii_case("localhost")
+                || name.parse::<Ipv4Addr>().is_ok_and(|ip| ip.is_loopback());
+            (loopback.then_some(name), after)
+        }
     };
-    let name = match host.strip_prefix('[') {
-        Some(rest) => rest.split(']').next().unwrap_or(""),
-        None => host.rsplit_once(':').map_or(host, |(name, _)| name),
+    let given = match given.strip_prefix(':') {
+        None if given.is_empty() => Some(80),
+        Some(digits) if !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit()) => {
+            digits.parse::<u16>().ok()
+        }
+        _ => None,
     };
-    name.eq_ignore_ascii_case("localhost")
-        || name
-            .parse::<std::net::IpAddr>()
-            .is_ok_and(|ip| ip.is_loopback())
+    name.is_some() && given == Some(port)
 }
 
 #[cfg(test)]
@@ -263,6 +348,55 @@ mod tests {
         for bad in ["", "+1", "-1", "1/", "../1", "1.0", "0x1", "1 "] {
             assert_eq!(parse_index(bad), None, "{bad:?}");
         }
+    }
+
+    #[test]
+    fn hosts_are_loopback_with_the_served_port_exactly() {
+        for good in [
+            "localhost:8123",
+            "LOCALHOST:8123",
+            "127.0.0.1:8123",
+            "127.1.2.3:8123",
+            "[::1]:8123",
+            "[0:0:0:0:0:0:0:1]:8123",
+        ] {
+            assert!(host_allowed(good, 8123), "{good:?}");
+        }
+        for bad in [
+            "localhost:80.evil.example",
+            "localhost.evil.example:8123",
+            "127.0.0.1.evil.example",
+            "127.0.0.1.evil.example:8123",
+            "evil.example:8123",
+            "localhost:8124",
+            "localhost:",
+            "localhost:+8123",
+            "localhost:8123:8123",
+            "localhost",
+            "[::1]",
+            "[::1]8123",
+            "[::1:8123",
+            "::1:8123",
+            "[::2]:8123",
+            "[::ffff:7f00:1]evil:8123",
+            "0.0.0.0:8123",
+            "10.0.0.1:8123",
+            "",
+        ] {
+            assert!(!host_allowed(bad, 8123), "{bad:?}");
+        }
+        // No port is HTTP's default.
+        assert!(host_allowed("localhost", 80) && host_allowed("[::1]", 80));
+        // A port beyond 16 bits does not wrap around.
+        assert!(!host_allowed("localhost:99999", 34463) && !host_allowed("localhost:65536", 0));
+    }
+
+    #[test]
+    fn a_public_address_is_warned_of_and_loopback_is_not() {
+        assert!(exposure_warning("127.0.0.1:80".parse().unwrap()).is_none());
+        assert!(exposure_warning("[::1]:80".parse().unwrap()).is_none());
+        let w = exposure_warning("0.0.0.0:8123".parse().unwrap()).unwrap();
+        assert!(w.contains("0.0.0.0:8123") && w.contains("network"), "{w}");
     }
 
     #[test]

@@ -25,8 +25,9 @@ pub enum SceneError {
     },
     #[error("{file}: the lights' power overflows f32: {message}; scale the emission down")]
     LightPower { file: PathBuf, message: String },
-    #[error("{file}: the scene has no geometry")]
-    NoGeometry { file: PathBuf },
+    /// No geometry; `dropped` degenerate triangles were all there was.
+    #[error("{file}: the scene has no geometry{}", dropped_note(*.dropped))]
+    NoGeometry { file: PathBuf, dropped: usize },
     #[error("{file}: the scene has no lights (no emissive material, [[light]] or sky)")]
     NoLights { file: PathBuf },
     #[error("{file}: the scene has no [[camera]]")]
@@ -39,4 +40,12 @@ pub enum SceneError {
     },
     #[error("{file}: building the ray-query structure failed: {source}")]
     Accel { file: PathBuf, source: AccelError },
+}
+
+/// Where every triangle was dropped, the error says so (there is no scene to warn with).
+fn dropped_note(dropped: usize) -> String {
+    match dropped {
+        0 => String::new(),
+        n => format!(" (dropped {n} degenerate triangles)"),
+    }
 }

@@ -3,27 +3,25 @@
 //! Everything is validated before anything is built: each problem is one [`SceneError`] naming
 //! the file and the entry. OBJ `vn` normals become shading normals (unless turned off per mesh
 //! or for the whole load), `vt` texture coordinates; MTL `map_Kd` / `map_Ks` and the tables'
-//! `texture` / `ks_texture` name image textures, decoded once per file.
+//! `texture` / `ks_texture` name image textures. Materials, images, the scene hash and the
+//! warnings go through the [`Builder`] the pbrt importer uses too.
 
+use super::builder::{Builder, Contents, MaterialDesc, Origin};
 use super::wavefront;
 use super::{
     CameraDesc, FovAxis, MaterialTextures, MeshShading, RenderDefaults, Scene, SceneError,
-    SceneParts, MAX_COORDINATE,
+    SceneParts, Warning, MAX_COORDINATE,
 };
 use crate::accel::{AccelKind, Geometry, Sphere};
-use crate::bsdf::{Material, MaterialKind};
+use crate::bsdf::{BsdfError, Material, MaterialKind, Params};
 use crate::color::Rgb;
 use crate::files::{self, Kind};
 use crate::light::Light;
 use crate::light::{EnvMapDesc, SceneBounds, SkyDesc};
-use crate::options::OptionName;
-use crate::texture::{self, Texture};
 use glam::{Mat3, Vec2, Vec3};
 use serde::Deserialize;
-use sha2::{Digest, Sha256};
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// The camera's vertical field of view, in degrees: narrower makes the image plane so far
 /// that rays lose their direction in f32, wider so near that pixels lose their size.
@@ -33,8 +31,9 @@ const MAX_FOV: f32 = 179.0;
 #[derive(Clone, Copy, Debug)]
 pub struct LoadOptions {
     pub accel: AccelKind,
-    /// Clamp Phong materials with kd + ks > 1 (with a warning) instead of rejecting them, and
-    /// use a material's constant colour (with a warning) where its texture file is missing.
+    /// Scale down materials that would create energy (Phong's kd + ks > 1, in either format)
+    /// with a warning instead of refusing them, and go on past missing files with a warning
+    /// (a material's constant colour for its texture; in pbrt files also meshes and skies).
     pub lenient: bool,
     /// Use the meshes' vertex normals as shading normals (each mesh can still turn them off);
     /// `false` renders every triangle flat, as if the files had none.
@@ -181,22 +180,16 @@ pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, Scen
     let mut loader = Loader {
         path: path.to_path_buf(),
         dir: path.parent().map(Path::to_path_buf).unwrap_or_default(),
-        lenient: options.lenient,
         shading_normals: options.shading_normals,
-        hasher: Sha256::new(),
-        materials: Vec::new(),
-        material_textures: Vec::new(),
-        textures: Vec::new(),
-        texture_files: HashMap::new(),
+        builder: Builder::new(path, options.lenient),
         shading: MeshShading::default(),
         by_name: HashMap::new(),
         geometry: Geometry::default(),
         triangle_materials: Vec::new(),
         sphere_materials: Vec::new(),
         dropped_triangles: 0,
-        inputs: vec![path.to_path_buf()],
     };
-    loader.hasher.update(text.as_bytes());
+    loader.builder.input(path, text.as_bytes());
     loader.build(file)
 }
 
@@ -255,22 +248,14 @@ fn check_array_lengths(path: &Path, at: &str, table: &toml::Table) -> Result<(),
 struct Loader {
     path: PathBuf,
     dir: PathBuf,
-    lenient: bool,
     shading_normals: bool,
-    hasher: Sha256,
-    materials: Vec<Material>,
-    material_textures: Vec<MaterialTextures>,
-    textures: Vec<Arc<Texture>>,
-    /// Index in `textures` of each file read so far.
-    texture_files: HashMap<PathBuf, u32>,
+    builder: Builder,
     shading: MeshShading,
     by_name: HashMap<String, u32>,
     geometry: Geometry,
     triangle_materials: Vec<u32>,
     sphere_materials: Vec<u32>,
     dropped_triangles: usize,
-    /// Every file read, for the check that an output overwrites none of them.
-    inputs: Vec<PathBuf>,
 }
 
 impl Loader {
@@ -353,8 +338,13 @@ impl Loader {
         // the same name are overridden by them.
         for (name, table) in &file.material {
             let material = self.material_from_table(name, table, None)?;
-            let index = self.add_material(material);
             let entry = format!("material.{name}");
+            let origin = Origin {
+                file: self.path.clone(),
+                line: None,
+                entry: entry.clone(),
+            };
+            let index = self.add_material(&origin, material)?;
             let dir = self.dir.clone();
             let path = self.path.clone();
             let kd = self.texture(&path, &format!("{entry}.texture"), &dir, &table.texture)?;
@@ -364,7 +354,8 @@ impl Loader {
                 &dir,
                 &table.ks_texture,
             )?;
-            self.material_textures[index as usize] = MaterialTextures { kd, ks };
+            self.builder
+                .set_textures(index, MaterialTextures { kd, ks });
         }
         for (i, mesh) in file.mesh.iter().enumerate() {
             self.mesh(i, mesh)?;
@@ -384,18 +375,8 @@ impl Loader {
             .enumerate()
             .map(|(i, l)| self.light(i, l))
             .collect::<Result<Vec<_>, _>>()?;
-        if self.dropped_triangles > 0 {
-            eprintln!(
-                "warning: {}: dropped {} degenerate triangles",
-                self.path.display(),
-                self.dropped_triangles
-            );
-        }
-        if self.geometry.triangles.is_empty() && self.geometry.spheres.is_empty() {
-            return Err(SceneError::NoGeometry {
-                file: self.path.clone(),
-            });
-        }
+        self.builder
+            .check_geometry(&self.geometry, self.dropped_triangles)?;
         let triangles = self.geometry.triangles.len();
         for list in [
             &mut self.shading.triangle_normals,
@@ -405,30 +386,18 @@ impl Loader {
                 list.resize(triangles, MeshShading::NONE);
             }
         }
-        let source_hash = self
-            .hasher
-            .finalize()
-            .iter()
-            .map(|b| format!("{b:02x}"))
-            .collect();
-        Ok(SceneParts {
-            source: self.path,
-            source_hash,
+        Ok(self.builder.finish(Contents {
             geometry: self.geometry,
             triangle_materials: self.triangle_materials,
             sphere_materials: self.sphere_materials,
-            materials: self.materials,
-            material_textures: self.material_textures,
-            textures: self.textures,
             shading: self.shading,
-            point_and_directional: lights,
+            lights,
             sky,
             env_map,
             cameras,
             defaults,
             dropped_triangles: self.dropped_triangles,
-            inputs: self.inputs,
-        })
+        }))
     }
 
     fn render_defaults(&self, r: &RenderTable) -> Result<RenderDefaults, SceneError> {
@@ -484,8 +453,9 @@ impl Loader {
         }
         let r = self.vec3("render.sky.rotate_deg", s.rotate_deg.unwrap_or_default())?;
         let path = self.dir.join(image);
-        let (_, image) = self
-            .read_image(&path)
+        let image = self
+            .builder
+            .image(&path)
             .map_err(|message| self.invalid("render.sky.image", message))?;
         Ok((
             None,
@@ -495,22 +465,6 @@ impl Loader {
                 rotation: rotation_deg(r),
             }),
         ))
-    }
-
-    /// Reads an image (once per file: later uses share the decoded copy) and adds its bytes to
-    /// the scene hash; the error names the image file.
-    fn read_image(&mut self, path: &Path) -> Result<(u32, Arc<Texture>), String> {
-        if let Some(&i) = self.texture_files.get(path) {
-            return Ok((i, Arc::clone(&self.textures[i as usize])));
-        }
-        let fail = |e: String| format!("cannot read image {}: {e}", path.display());
-        let bytes = std::fs::read(path).map_err(|e| fail(e.to_string()))?;
-        let texture = Arc::new(texture::read(path).map_err(fail)?);
-        self.hasher.update(&bytes);
-        let index = self.textures.len() as u32;
-        self.texture_files.insert(path.to_path_buf(), index);
-        self.textures.push(Arc::clone(&texture));
-        Ok((index, texture))
     }
 
     /// The texture named by `name` (relative to `dir`) for the entry `entry` of `file`: an error
@@ -526,13 +480,15 @@ impl Loader {
         let Some(name) = name else {
             return Ok(None);
         };
-        match self.read_image(&dir.join(name)) {
-            Ok((index, _)) => Ok(Some(index)),
-            Err(message) if self.lenient => {
-                eprintln!(
-                    "warning: {}: {entry}: {message}; using the material's constant colour",
-                    file.display()
-                );
+        let path = dir.join(name);
+        match self.builder.image(&path) {
+            Ok(image) => Ok(Some(self.builder.texture(&path, &image, Rgb::WHITE))),
+            Err(message) if self.builder.lenient() => {
+                self.builder.warn(Warning::entry(
+                    file,
+                    entry,
+                    format!("{message}; using the material's constant colour"),
+                ));
                 Ok(None)
             }
             Err(message) => Err(SceneError::Invalid {
@@ -581,12 +537,12 @@ impl Loader {
         })
     }
 
-    fn add_material(&mut self, material: Material) -> u32 {
-        let index = self.materials.len() as u32;
-        self.by_name.insert(material.name.clone(), index);
-        self.materials.push(material);
-        self.material_textures.push(MaterialTextures::default());
-        index
+    /// Adds a material through the builder, findable by its name.
+    fn add_material(&mut self, origin: &Origin, material: MaterialDesc) -> Result<u32, SceneError> {
+        let name = material.name.clone();
+        let index = self.builder.material(origin, material)?;
+        self.by_name.insert(name, index);
+        Ok(index)
     }
 
     fn material_index(&self, entry: &str, name: &str) -> Result<u32, SceneError> {
@@ -607,97 +563,53 @@ impl Loader {
         name: &str,
         t: &MaterialTable,
         base: Option<&Material>,
-    ) -> Result<Material, SceneError> {
+    ) -> Result<MaterialDesc, SceneError> {
         let entry = format!("material.{name}");
-        let (base_kd, base_ks, base_n, base_ior) = match base.map(|m| &m.kind) {
-            Some(MaterialKind::Lambert { kd }) => (*kd, Rgb::BLACK, 1.0, 1.5),
-            Some(MaterialKind::Phong { kd, ks, exponent }) => (*kd, *ks, *exponent, 1.5),
-            Some(MaterialKind::Mirror { ks }) => (Rgb::BLACK, *ks, 1.0, 1.5),
-            Some(MaterialKind::Glass { ior }) => (Rgb::BLACK, Rgb::BLACK, 1.0, *ior),
-            None => (Rgb::splat(0.8), Rgb::BLACK, 1.0, 1.5),
+        // Over a base, what the base's type lacks is black (its exponent 1, its ior 1.5);
+        // without one, each type's own defaults.
+        let mut params = match base {
+            Some(m) => {
+                let mut p = Params::new()
+                    .with_color("kd", Rgb::BLACK)
+                    .with_color("ks", Rgb::BLACK)
+                    .with_number("exponent", 1.0)
+                    .with_number("ior", 1.5);
+                p.overlay(&m.kind.params());
+                p
+            }
+            None => Params::new(),
         };
-        let kd =
-            t.kd.map(|v| self.albedo(&format!("{entry}.kd"), v))
-                .transpose()?
-                .unwrap_or(base_kd);
-        let ks =
-            t.ks.map(|v| self.albedo(&format!("{entry}.ks"), v))
-                .transpose()?
-                .unwrap_or(base_ks);
-        let exponent = t
-            .exponent
-            .map(|x| self.positive(&format!("{entry}.exponent"), x))
-            .transpose()?
-            .unwrap_or(base_n);
-        let ior = t
-            .ior
-            .map(|x| self.positive(&format!("{entry}.ior"), x))
-            .transpose()?
-            .unwrap_or(base_ior);
+        if let Some(v) = t.kd {
+            params = params.with_color("kd", self.albedo(&format!("{entry}.kd"), v)?);
+        }
+        if let Some(v) = t.ks {
+            params = params.with_color("ks", self.albedo(&format!("{entry}.ks"), v)?);
+        }
+        if let Some(x) = t.exponent {
+            params =
+                params.with_number("exponent", self.positive(&format!("{entry}.exponent"), x)?);
+        }
+        if let Some(x) = t.ior {
+            params = params.with_number("ior", self.positive(&format!("{entry}.ior"), x)?);
+        }
         let emission = match t.emission {
             Some(v) => self.color(&format!("{entry}.emission"), v)?,
             None => base.map_or(Rgb::BLACK, |m| m.emission),
         };
-        let kind_name = match (&t.kind, base) {
+        let type_name = match (&t.kind, base) {
             (Some(k), _) => k.as_str(),
-            (None, Some(m)) => kind_name(&m.kind),
+            (None, Some(m)) => m.kind.type_name(),
             (None, None) => "lambert",
         };
-        let kind = match kind_name {
-            "lambert" => MaterialKind::Lambert { kd },
-            "phong" => MaterialKind::Phong { kd, ks, exponent },
-            "mirror" => MaterialKind::Mirror {
-                ks: if t.ks.is_some() || base.is_some() {
-                    ks
-                } else {
-                    Rgb::WHITE
-                },
-            },
-            "glass" => MaterialKind::Glass { ior },
-            other => {
-                return Err(self.invalid(
-                    format!("{entry}.type"),
-                    format!("unknown material type '{other}' (lambert, phong, mirror, glass)"),
-                ))
-            }
+        let Some(&type_name) = MaterialKind::TYPE_NAMES.iter().find(|&&t| t == type_name) else {
+            let e = BsdfError::UnknownType {
+                name: type_name.to_string(),
+            };
+            return Err(self.invalid(format!("{entry}.type"), e.to_string()));
         };
-        let kind = self.check_energy(&entry, kind)?;
-        Ok(Material {
-            name: name.to_string(),
-            kind,
+        Ok(MaterialDesc {
             emission,
-        })
-    }
-
-    /// Phong conserves energy only for kd + ks <= 1 (000 eq. 3.1).
-    fn check_energy(&self, entry: &str, kind: MaterialKind) -> Result<MaterialKind, SceneError> {
-        let MaterialKind::Phong { kd, ks, exponent } = kind else {
-            return Ok(kind);
-        };
-        let total = (kd + ks).max_component();
-        if total <= 1.0 + 1e-6 {
-            return Ok(kind);
-        }
-        if !self.lenient {
-            return Err(self.invalid(
-                entry,
-                format!(
-                    "kd + ks = {:?} exceeds 1 and would create energy (use {} to clamp)",
-                    (kd + ks).to_array(),
-                    OptionName("lenient")
-                ),
-            ));
-        }
-        eprintln!(
-            "warning: {}: {entry}: kd + ks exceeds 1; scaled down to conserve energy",
-            self.path.display()
-        );
-        let scale = |c: f32, s: f32| if c + s > 1.0 { 1.0 / (c + s) } else { 1.0 };
-        let f = Rgb::new(scale(kd.r, ks.r), scale(kd.g, ks.g), scale(kd.b, ks.b));
-        Ok(MaterialKind::Phong {
-            kd: kd * f,
-            ks: ks * f,
-            exponent,
+            ..MaterialDesc::new(name, type_name, params)
         })
     }
 
@@ -708,8 +620,7 @@ impl Loader {
         }
         let obj_path = self.dir.join(&mesh.file);
         let bytes = files::read(&obj_path, Kind::Obj)?;
-        self.inputs.push(obj_path.clone());
-        self.hasher.update(&bytes);
+        self.builder.input(&obj_path, &bytes);
         let load_options = tobj::LoadOptions {
             triangulate: true,
             single_index: false,
@@ -717,13 +628,16 @@ impl Loader {
         };
         let obj = wavefront::load_obj(&obj_path, &bytes, &load_options, &entry)?;
         for mtl in &obj.mtl_files {
-            self.hasher.update(&mtl.bytes);
-            self.inputs.push(mtl.path.clone());
-            warn_unknown_mtl_statements(&mtl.path, &String::from_utf8_lossy(&mtl.bytes));
+            self.builder.input(&mtl.path, &mtl.bytes);
+            for w in unknown_mtl_statements(&mtl.path, &String::from_utf8_lossy(&mtl.bytes)) {
+                self.builder.warn(w);
+            }
         }
         if mesh.material.is_none() {
             let scene_materials: Vec<String> = self.by_name.keys().cloned().collect();
-            wavefront::warn_unknown_usemtl(&obj_path, &obj, &scene_materials);
+            for w in wavefront::unknown_usemtl(&obj_path, &obj, &scene_materials) {
+                self.builder.warn(w);
+            }
         }
         // Texture files are named relative to the MTL file that names them.
         let mtl_file = obj
@@ -810,12 +724,14 @@ impl Loader {
                 _ => match default_material {
                     Some(d) => d,
                     None => {
-                        eprintln!(
-                            "warning: {}: object '{}' has no material; using grey lambert (kd 0.8)",
-                            obj_path.display(),
-                            model.name
-                        );
-                        let d = self.default_material();
+                        self.builder.warn(Warning::file(
+                            obj_path,
+                            format!(
+                                "object '{}' has no material; using grey lambert (kd 0.8)",
+                                model.name
+                            ),
+                        ));
+                        let d = self.default_material()?;
                         default_material = Some(d);
                         d
                     }
@@ -899,17 +815,19 @@ impl Loader {
         Ok((normal_base, uv_base))
     }
 
-    fn default_material(&mut self) -> u32 {
+    fn default_material(&mut self) -> Result<u32, SceneError> {
         const NAME: &str = "(default grey)";
         match self.by_name.get(NAME) {
-            Some(&i) => i,
-            None => self.add_material(Material {
-                name: NAME.into(),
-                kind: MaterialKind::Lambert {
-                    kd: Rgb::splat(0.8),
-                },
-                emission: Rgb::BLACK,
-            }),
+            Some(&i) => Ok(i),
+            None => {
+                let origin = Origin {
+                    file: self.path.clone(),
+                    line: None,
+                    entry: NAME.into(),
+                };
+                let params = Params::new().with_color("kd", Rgb::splat(0.8));
+                self.add_material(&origin, MaterialDesc::new(NAME, "lambert", params))
+            }
         }
     }
 
@@ -939,29 +857,32 @@ impl Loader {
         }
         let illum = m.illumination_model.unwrap_or(0);
         let dissolve = m.dissolve.unwrap_or(1.0);
-        let kind = if matches!(illum, 4 | 6 | 7) || dissolve < 1.0 {
-            MaterialKind::Glass {
-                ior: m.optical_density.filter(|n| *n > 0.0).unwrap_or(1.5),
-            }
+        let (type_name, params) = if matches!(illum, 4 | 6 | 7) || dissolve < 1.0 {
+            let ior = m.optical_density.filter(|n| *n > 0.0).unwrap_or(1.5);
+            ("glass", Params::new().with_number("ior", ior))
         } else if matches!(illum, 3 | 5) {
-            MaterialKind::Mirror {
-                ks: if m.specular.is_some() { ks } else { Rgb::WHITE },
-            }
+            let ks = if m.specular.is_some() { ks } else { Rgb::WHITE };
+            ("mirror", Params::new().with_color("ks", ks))
         } else if ks.max_component() > 0.0 {
-            MaterialKind::Phong {
-                kd,
-                ks,
-                exponent: m.shininess.filter(|n| *n >= 0.0).unwrap_or(1.0),
-            }
+            let exponent = m.shininess.filter(|n| *n >= 0.0).unwrap_or(1.0);
+            let p = Params::new()
+                .with_color("kd", kd)
+                .with_color("ks", ks)
+                .with_number("exponent", exponent);
+            ("phong", p)
         } else {
-            MaterialKind::Lambert { kd }
+            ("lambert", Params::new().with_color("kd", kd))
         };
-        let kind = self.check_energy(&entry, kind)?;
-        let index = self.add_material(Material {
-            name: m.name.clone(),
-            kind,
+        let origin = Origin {
+            file: self.path.clone(),
+            line: None,
+            entry,
+        };
+        let material = MaterialDesc {
             emission,
-        });
+            ..MaterialDesc::new(m.name.clone(), type_name, params)
+        };
+        let index = self.add_material(&origin, material)?;
         let mtl_dir = mtl_file.parent().unwrap_or(Path::new("")).to_path_buf();
         let map = |t: &Option<String>| t.as_ref().map(|s| PathBuf::from(texture_file_name(s)));
         let kd = self.texture(
@@ -976,7 +897,8 @@ impl Loader {
             &mtl_dir,
             &map(&m.specular_texture),
         )?;
-        self.material_textures[index as usize] = MaterialTextures { kd, ks };
+        self.builder
+            .set_textures(index, MaterialTextures { kd, ks });
         Ok(index)
     }
 
@@ -1010,15 +932,6 @@ fn rotation_deg(r: Vec3) -> Mat3 {
         * Mat3::from_rotation_x(r.x.to_radians())
 }
 
-fn kind_name(kind: &MaterialKind) -> &'static str {
-    match kind {
-        MaterialKind::Lambert { .. } => "lambert",
-        MaterialKind::Phong { .. } => "phong",
-        MaterialKind::Mirror { .. } => "mirror",
-        MaterialKind::Glass { .. } => "glass",
-    }
-}
-
 /// The file of an MTL `map_*` statement: its last word, after any options (`-s 1 1 1 ...`).
 fn texture_file_name(statement: &str) -> &str {
     statement.split_whitespace().last().unwrap_or(statement)
@@ -1029,7 +942,8 @@ const KNOWN_MTL: &[&str] = &[
     "newmtl", "Kd", "Ks", "Ke", "Ns", "Ni", "d", "illum", "map_Kd", "map_Ks",
 ];
 
-fn warn_unknown_mtl_statements(path: &Path, text: &str) {
+fn unknown_mtl_statements(path: &Path, text: &str) -> Vec<Warning> {
+    let mut warnings = Vec::new();
     let mut seen = std::collections::BTreeSet::new();
     for line in text.lines() {
         let line = line.trim();
@@ -1040,10 +954,11 @@ fn warn_unknown_mtl_statements(path: &Path, text: &str) {
             continue;
         }
         if seen.insert(word.to_string()) {
-            eprintln!(
-                "warning: {}: skipping unsupported MTL statement '{word}'",
-                path.display()
-            );
+            warnings.push(Warning::file(
+                path,
+                format!("skipping unsupported MTL statement '{word}'"),
+            ));
         }
     }
+    warnings
 }

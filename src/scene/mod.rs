@@ -1,24 +1,28 @@
 //! Scenes: the TOML scene file with its OBJ/MTL meshes and spheres, validated and turned into
-//! geometry for the ray queries, materials, lights and cameras.
+//! geometry for the ray queries, materials, lights and cameras. Both formats (`load` for
+//! TOML, `pbrt`) hand what they read to one `builder`; loading returns its warnings with the
+//! scene and prints nothing.
 
 use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, PACKET};
-use crate::bsdf::{Albedo, Bsdf, Material, MaterialKind, Normals, TransportMode};
-use crate::color::Rgb;
+use crate::bsdf::{Albedo, Bsdf, Material, Normals, TransportMode};
 use crate::light::{EnvMapDesc, Lights, SceneBounds, SkyDesc};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
 use std::path::PathBuf;
 use std::sync::Arc;
 
+mod builder;
 mod camera;
 mod error;
 mod load;
 pub mod pbrt;
+mod warning;
 mod wavefront;
 
 pub use camera::{Camera, CameraDesc, FovAxis};
 pub use error::SceneError;
 pub use load::{load, load_parts, LoadOptions};
+pub use warning::Warning;
 
 /// The largest coordinate a scene may have: f32 positions there are still 1/16 apart, so a
 /// scene of ordinary size keeps its detail, while beyond it areas, distances and the default
@@ -132,6 +136,8 @@ pub struct Scene {
     pub dropped_triangles: usize,
     /// Every file the scene was read from (the scene file first).
     pub inputs: Vec<PathBuf>,
+    /// What the load approximated, skipped or replaced, for the caller to show.
+    pub warnings: Vec<Warning>,
 }
 
 /// Everything but the ray-query structure, from which [`Scene::build`] makes a scene; the
@@ -156,6 +162,7 @@ pub struct SceneParts {
     pub defaults: RenderDefaults,
     pub dropped_triangles: usize,
     pub inputs: Vec<PathBuf>,
+    pub warnings: Vec<Warning>,
 }
 
 impl Scene {
@@ -164,6 +171,7 @@ impl Scene {
     pub fn build(parts: SceneParts, accel_kind: AccelKind) -> Result<Scene, SceneError> {
         let (min, max) = parts.geometry.bounds().ok_or(SceneError::NoGeometry {
             file: parts.source.clone(),
+            dropped: parts.dropped_triangles,
         })?;
         let center = 0.5 * (min + max);
         let radius = (0.5 * (max - min).length()).max(1e-6);
@@ -210,6 +218,7 @@ impl Scene {
             bounding_sphere: (center, radius),
             dropped_triangles: parts.dropped_triangles,
             inputs: parts.inputs,
+            warnings: parts.warnings,
         })
     }
 
@@ -316,29 +325,12 @@ impl Scene {
     /// <= 1 per channel, which Phong needs to conserve energy), its constants elsewhere.
     pub fn albedo(&self, material: u32, uv: Vec2) -> Albedo {
         let kind = &self.material(material).kind;
-        let mut albedo = Albedo::of(kind);
         let textures = self.material_textures[material as usize];
         if textures == MaterialTextures::default() {
-            return albedo;
+            return Albedo::of(kind);
         }
-        let clamp = |c: Rgb, limit: Rgb| {
-            Rgb::new(
-                c.r.clamp(0.0, limit.r.max(0.0)),
-                c.g.clamp(0.0, limit.g.max(0.0)),
-                c.b.clamp(0.0, limit.b.max(0.0)),
-            )
-        };
-        if let Some(t) = textures.ks {
-            albedo.ks = clamp(self.textures[t as usize].lookup(uv), Rgb::WHITE);
-        }
-        if let Some(t) = textures.kd {
-            let limit = match kind {
-                MaterialKind::Phong { .. } => Rgb::WHITE - albedo.ks,
-                _ => Rgb::WHITE,
-            };
-            albedo.kd = clamp(self.textures[t as usize].lookup(uv), limit);
-        }
-        albedo
+        let texel = |t: Option<u32>| t.map(|t| self.textures[t as usize].lookup(uv));
+        kind.textured_albedo(texel(textures.kd), texel(textures.ks))
     }
 
     /// The BSDF of `material` at a surface point with `normals` and texture coordinates `uv`,

@@ -3,7 +3,7 @@
 //! panic), files are opened only through [`crate::files`], and a panic left in tobj is caught
 //! and reported as an error rather than ending the process.
 
-use super::SceneError;
+use super::{SceneError, Warning};
 use crate::files::{self, excerpt, Kind};
 use std::cell::RefCell;
 use std::collections::HashMap;
@@ -343,25 +343,30 @@ pub fn load_obj(
     })
 }
 
-/// Warns about every `usemtl` naming a material neither the MTL files nor the scene file
+/// A warning for every `usemtl` naming a material neither the MTL files nor the scene file
 /// define (a typo would otherwise only show as grey surfaces).
-pub fn warn_unknown_usemtl(path: &Path, obj: &Obj, scene_materials: &[String]) {
+pub fn unknown_usemtl(path: &Path, obj: &Obj, scene_materials: &[String]) -> Vec<Warning> {
     let known: Vec<&str> = obj
         .mtl_files
         .iter()
         .flat_map(|m| m.names.iter().map(String::as_str))
         .chain(scene_materials.iter().map(String::as_str))
         .collect();
-    for (name, line) in &obj.facts.usemtl {
-        if !known.contains(&name.as_str()) {
-            eprintln!(
-                "warning: {}: line {line}: usemtl '{}' names no material (known: {}); its faces get the default grey",
-                path.display(),
-                excerpt(name, EXCERPT),
-                known.join(", ")
-            );
-        }
-    }
+    obj.facts
+        .usemtl
+        .iter()
+        .filter(|(name, _)| !known.contains(&name.as_str()))
+        .map(|(name, line)| {
+            Warning::file(
+                path,
+                format!(
+                    "line {line}: usemtl '{}' names no material (known: {}); its faces get the default grey",
+                    excerpt(name, EXCERPT),
+                    known.join(", ")
+                ),
+            )
+        })
+        .collect()
 }
 
 #[cfg(test)]

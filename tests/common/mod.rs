@@ -6,9 +6,10 @@ pub mod browser;
 
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
-use vmerge::integrator::{self, RenderContext};
+use vmerge::integrator::RenderContext;
 use vmerge::options::Technique;
 use vmerge::options::{RenderOptions, SamplerKind};
+use vmerge::render::create_integrator;
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
 pub fn load(name: &str) -> Scene {
@@ -80,7 +81,7 @@ pub fn render_stats(scene: &Scene, options: &RenderOptions, iterations: u64) -> 
     );
     let [w, h] = options.resolution.expect("tests set a resolution");
     let camera = Camera::new(scene.camera(options.camera.as_deref()).unwrap(), w, h);
-    let mut integrator = integrator::create(RenderContext {
+    let mut integrator = create_integrator(RenderContext {
         scene,
         camera,
         options,
@@ -132,7 +133,7 @@ pub fn render_stats_by_seed(scene: &Scene, options: &RenderOptions, iterations: 
                 ..options.clone()
             };
             let camera = Camera::new(scene.camera(options.camera.as_deref()).unwrap(), w, h);
-            let mut integrator = integrator::create(RenderContext {
+            let mut integrator = create_integrator(RenderContext {
                 scene,
                 camera,
                 options: &options,

@@ -18,8 +18,8 @@
 //! density is pdf(w) / P: a trial succeeds with probability p_acc / P and E[N / P] = 1/p_acc.
 
 use crate::accel::{offset_ray_origin, Ray, PACKET};
-use crate::bsdf::{Bsdf, Lobe, LobeShape};
-use crate::sampling::{cosine_hemisphere, power_cosine, Rng};
+use crate::bsdf::{Bsdf, Lobe, LobeShape, PolarBound, PolarInterval};
+use crate::sampling::Rng;
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
@@ -106,11 +106,8 @@ impl TryFrom<u32> for PacketWidth {
 enum Polar {
     /// The whole lobe, drawn with the warp the BSDF itself uses.
     Whole,
-    /// Cosine lobe: its polar CDF sin^2(theta) is uniform in `[lo, lo + span]`.
-    SinSquared { lo: f64, span: f64 },
-    /// Power-cosine lobe: 1 - cos^(n+1)(alpha) is its polar CDF, so cos^(n+1)(alpha) is uniform
-    /// in `[hi - span, hi]`.
-    PowerCosine { hi: f64, span: f64, inv_n1: f64 },
+    /// An interval, with the lobe's closed-form mass and sampler there.
+    Bounded(PolarBound),
 }
 
 /// One mixture component with its bound, in a frame around its axis.
@@ -195,45 +192,23 @@ impl Component {
             let x_d = (x * tx + y * ty) / sin_d;
             (cos_lo, sin_lo, x_d, z.cross(x_d), -dphi, 2.0 * dphi)
         };
-        let (polar, mass) = match lobe.shape {
-            LobeShape::Cosine => {
-                // sin^2(theta1) - sin^2(theta0) = sin(theta1 + theta0) sin(theta1 - theta0); with
-                // neither end clamped the second factor is sin(2 gamma), which keeps its digits
-                // however narrow the cone.
-                let sin_difference = if cos_hi > 0.0 && sin_lo > 0.0 {
-                    2.0 * sin_gamma * cos_gamma
-                } else {
-                    sin1 * cos0 - cos1 * sin0
-                };
-                let span = (sin1 * cos0 + cos1 * sin0) * sin_difference;
-                (
-                    Polar::SinSquared {
-                        lo: sin0 * sin0,
-                        span,
-                    },
-                    span,
-                )
-            }
-            LobeShape::PowerCosine { exponent } => {
-                let n1 = exponent as f64 + 1.0;
-                let hi = cos0.powf(n1);
-                let span = hi - cos1.powf(n1);
-                let polar = Polar::PowerCosine {
-                    hi,
-                    span,
-                    inv_n1: 1.0 / n1,
-                };
-                (polar, span)
-            }
-        };
-        let p_b = mass * phi_span / (2.0 * PI);
+        let bound = lobe.shape.polar_bound(&PolarInterval {
+            cos0,
+            sin0,
+            cos1,
+            sin1,
+            // With neither end clamped the interval is 2 gamma wide: sin(2 gamma) keeps its
+            // digits however narrow the cone.
+            sin_width: (cos_hi > 0.0 && sin_lo > 0.0).then_some(2.0 * sin_gamma * cos_gamma),
+        });
+        let p_b = bound.mass() * phi_span / (2.0 * PI);
         if p_b >= WHOLE_LOBE_SHARE {
             return (whole, 1.0);
         }
         let bounded = Component {
             x,
             y,
-            polar,
+            polar: Polar::Bounded(bound),
             phi0,
             phi_span,
             ..whole
@@ -245,21 +220,11 @@ impl Component {
     fn sample(&self, u: [f32; 2]) -> Vec3 {
         let (cos_theta, sin_theta) = match self.polar {
             Polar::Whole => {
-                let local = match self.shape {
-                    LobeShape::Cosine => cosine_hemisphere(u),
-                    LobeShape::PowerCosine { exponent } => power_cosine(u, exponent),
-                };
+                let local = self.shape.sample(u);
                 let w = self.x * local.x as f64 + self.y * local.y as f64 + self.z * local.z as f64;
                 return w.as_vec3();
             }
-            Polar::SinSquared { lo, span } => {
-                let sin2 = (lo + u[0] as f64 * span).clamp(0.0, 1.0);
-                ((1.0 - sin2).sqrt(), sin2.sqrt())
-            }
-            Polar::PowerCosine { hi, span, inv_n1 } => {
-                let c = (hi - u[0] as f64 * span).max(0.0).powf(inv_n1).min(1.0);
-                (c, (1.0 - c * c).sqrt())
-            }
+            Polar::Bounded(bound) => bound.sample(u[0]),
         };
         // The azimuth in f32: its rounding moves the direction by less than f32 can resolve.
         let phi = (self.phi0 + u[1] as f64 * self.phi_span) as f32;
@@ -305,10 +270,11 @@ impl<'a> AngularBound<'a> {
         if !(radius > 0.0 && radius.is_finite()) {
             return Err(AcceptanceError::InvalidRadius(radius));
         }
-        let lobes = bsdf.lobes();
-        if lobes.as_slice().is_empty() {
+        if bsdf.is_delta() {
             return Err(AcceptanceError::DeltaBsdf);
         }
+        // Lobes with no closed-form bound leave no component: the bound is the whole BSDF.
+        let lobes = bsdf.lobes();
         // Every direction the BSDF keeps lies on the side of its frame's z. On a flat surface
         // that is one side of the geometric plane, so this is the origin `Ray::spawn` gives each
         // of them, and the cone is taken from it. With a shading normal the kept hemisphere
@@ -481,7 +447,7 @@ impl Default for Estimator {
     /// Single rays: Embree traces a packet's rays 1.1 to 1.4 times faster than single ones,
     /// but tracing is under 40% of the stage, a render's gathers hold too few merges to fill
     /// packets, and the stage is under a fifth of a render: packets gain nothing measurable
-    /// (README, "UPG tentative rays").
+    /// (docs/performance.md, "UPG tentative rays").
     fn default() -> Self {
         Estimator {
             packet: PacketWidth::One,

@@ -11,6 +11,7 @@ use super::super::mis::{Gather, Neighbour, VcmVertex, VcmWeights, VmHere, NO_DEN
 use super::super::subpath::{EyeVertex, LightVertex, SubPath};
 use super::super::IterationStats;
 use super::acceptance::{AngularBound, Estimator, Outcome, StoredVerticesOnly, TentativeTracer};
+use super::{Deferred, UpgCounters};
 use crate::accel::Ray;
 use crate::bsdf::Bsdf;
 use crate::color::Rgb;
@@ -22,7 +23,7 @@ use glam::Vec3;
 /// The light vertices of one iteration and the grid over them.
 #[derive(Clone, Copy)]
 pub struct Gathered<'i> {
-    pub vertices: &'i [LightVertex],
+    pub vertices: &'i [LightVertex<Deferred>],
     pub grid: &'i HashGrid,
 }
 
@@ -64,7 +65,7 @@ impl<'s> UpgMerges<'s> {
     pub fn from_light(
         &self,
         w: &VcmWeights,
-        (state, hit, bsdf): (&SubPath, &SurfaceHit, &Bsdf),
+        (state, hit, bsdf): (&SubPath<Deferred>, &SurfaceHit, &Bsdf),
         gathered: Gathered,
         tentative: &mut Tentative<'s>,
         stats: &mut IterationStats,
@@ -240,7 +241,8 @@ fn carry(w: &VcmWeights, c: &Connection, at_from: VcmVertex, merge_at_from: VmHe
 
 /// The UPG merges of one eye sub-path awaiting their 1/p_acc: each merge's bound, its own
 /// random stream (so an estimate does not depend on how many numbers the packets before it
-/// drew) and its contribution without the 1/p_acc factor. Reused from gather to gather.
+/// drew) and its contribution without the 1/p_acc factor. Reused from gather to gather; it
+/// counts the merges' work until [`Tentative::take_counters`].
 pub struct Tentative<'s> {
     seed: u64,
     iteration: u64,
@@ -249,6 +251,7 @@ pub struct Tentative<'s> {
     bounds: Vec<AngularBound<'s>>,
     rngs: Vec<Rng>,
     values: Vec<Rgb>,
+    counters: UpgCounters,
 }
 
 impl<'s> Tentative<'s> {
@@ -262,6 +265,7 @@ impl<'s> Tentative<'s> {
             bounds: Vec::new(),
             rngs: Vec::new(),
             values: Vec::new(),
+            counters: UpgCounters::default(),
         }
     }
 
@@ -287,6 +291,11 @@ impl<'s> Tentative<'s> {
         self.values.push(value);
     }
 
+    /// The work counted since the last call: merges estimated, their trials and tentative rays.
+    pub fn take_counters(&mut self) -> UpgCounters {
+        std::mem::take(&mut self.counters)
+    }
+
     /// Estimates every pending merge, empties the list and returns the merges' sum. A capped
     /// estimate drops its merge and is counted as capped; an unreachable target drops its merge
     /// too.
@@ -297,16 +306,17 @@ impl<'s> Tentative<'s> {
         stats: &mut IterationStats,
     ) -> Rgb {
         let values = &mut self.values;
+        let counters = &mut self.counters;
         estimator.estimate_all(tracer, &self.bounds, &mut self.rngs, |i, estimate| {
-            stats.upg.merges += 1;
-            stats.upg.trials += estimate.trials as u64;
-            stats.upg.tentative_rays += estimate.rays as u64;
-            stats.upg.packet_rays += estimate.packed as u64;
+            counters.merges += 1;
+            counters.trials += estimate.trials as u64;
+            counters.tentative_rays += estimate.rays as u64;
+            counters.packet_rays += estimate.packed as u64;
             stats.rays += estimate.rays as u64;
             values[i] = match estimate.outcome {
                 Outcome::Estimate(inv_p_acc) => values[i] * inv_p_acc,
                 Outcome::Capped => {
-                    stats.upg.capped += 1;
+                    counters.capped += 1;
                     Rgb::BLACK
                 }
                 Outcome::Unreachable => Rgb::BLACK,

@@ -9,6 +9,9 @@
 //!   decide, and [`UpgCounters`], the tentative-ray work.
 
 use super::mis::{Arrival, VcmVertex, VcmWeights};
+use super::subpath::PendingMis;
+use super::Counters;
+use std::time::Duration;
 
 pub mod acceptance;
 pub mod merge;
@@ -51,11 +54,13 @@ impl Deferred {
             self.vm = 0.0;
         }
     }
+}
 
+impl PendingMis for Deferred {
     /// `v` with the merge's terms added once `rev_pdf_w`, the pdf with which the current vertex
     /// samples the merge vertex, gives its gathering-side area pdf: eta_j in d^VC (001 eq. (35),
     /// 000 eq. 2.81) and 1 in d^VM (001 eq. (36)).
-    pub fn settle(&self, w: &VcmWeights, v: VcmVertex, rev_pdf_w: f32) -> VcmVertex {
+    fn settle(&self, w: &VcmWeights, v: VcmVertex, rev_pdf_w: f32) -> VcmVertex {
         if self.vm == 0.0 {
             return v;
         }
@@ -97,6 +102,54 @@ impl std::ops::Add for UpgCounters {
 }
 
 impl UpgCounters {
+    const MERGES: &'static str = "upg_merges";
+    const TRIALS: &'static str = "upg_trials";
+    const TENTATIVE_RAYS: &'static str = "upg_tentative_rays";
+    const PACKET_RAYS: &'static str = "upg_packet_rays";
+    const CAPPED: &'static str = "upg_capped_merges";
+
+    /// The counters as the integrator reports them ([`super::Integrator::counters`]).
+    pub fn named(&self) -> Counters {
+        Counters::new(vec![
+            (Self::MERGES, self.merges),
+            (Self::TRIALS, self.trials),
+            (Self::TENTATIVE_RAYS, self.tentative_rays),
+            (Self::PACKET_RAYS, self.packet_rays),
+            (Self::CAPPED, self.capped),
+        ])
+    }
+
+    /// Reads back what [`named`](Self::named) reported; `None` unless UPG merged at all.
+    pub fn from_named(counters: &Counters) -> Option<Self> {
+        let get = |name| counters.get(name).unwrap_or(0);
+        let upg = UpgCounters {
+            merges: get(Self::MERGES),
+            trials: get(Self::TRIALS),
+            tentative_rays: get(Self::TENTATIVE_RAYS),
+            packet_rays: get(Self::PACKET_RAYS),
+            capped: get(Self::CAPPED),
+        };
+        (upg.merges > 0).then_some(upg)
+    }
+
+    /// Metadata entries of the rates over `elapsed`; none unless UPG merged at all.
+    pub fn rates(&self, elapsed: Duration) -> Vec<(String, String)> {
+        if self.merges == 0 {
+            return Vec::new();
+        }
+        let seconds = elapsed.as_secs_f64().max(1e-9);
+        vec![
+            (
+                "upg_merges_per_second".into(),
+                format!("{:.0}", self.merges as f64 / seconds),
+            ),
+            (
+                "upg_tentative_rays_per_second".into(),
+                format!("{:.0}", self.tentative_rays as f64 / seconds),
+            ),
+        ]
+    }
+
     /// Metadata entries: the thesis reports about 2.81 trials per merge (000 sec. 2.4.3).
     pub fn statistics(&self) -> Vec<(String, String)> {
         let per_merge = |n: u64| format!("{:.3}", n as f64 / self.merges.max(1) as f64);

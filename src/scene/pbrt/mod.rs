@@ -1,28 +1,34 @@
 //! pbrt-v4 scene files (`.pbrt`): the subset that Bitterli's scenes and typical exports use,
-//! read into the same [`SceneParts`] as the TOML format (README, "pbrt-v4 scenes").
+//! read into the same [`SceneParts`] as the TOML format (docs/pbrt.md).
 //!
-//! `tokenizer` and `parser` turn text into checked directives, `import` runs pbrt's graphics
-//! state over them (Include/Import, attributes, transforms, objects flattened), `ply` reads the
-//! meshes (in parallel, each file once), and `material` holds the rules that map pbrt's
-//! materials onto vmerge's BSDFs. Every error names the file and line; warnings too.
+//! `tokenizer` and `parser` turn text into checked directives, `directives` lists every
+//! directive once (its form, where it may stand, its handler), `import` walks the files
+//! (Include/Import) and hands the result to the scene builder; the handlers live by concept:
+//! `state` (attributes, transforms, objects flattened, camera and settings), `shapes` (with
+//! `ply`, which reads the meshes in parallel, each file once), `material` (the rules that map
+//! pbrt's materials onto vmerge's BSDFs), `textures` and `lights`. Every error names the file
+//! and line; warnings too.
 
 use super::{LoadOptions, SceneError, SceneParts};
 use std::path::Path;
 
+mod directives;
 mod envmap;
 mod import;
+mod lights;
 mod material;
 mod parser;
 pub mod ply;
+mod shapes;
+mod state;
+#[cfg(test)]
+mod tests;
+mod textures;
 mod tokenizer;
 
-/// Reads a pbrt-v4 scene; warnings go to stderr, one line each.
+/// Reads a pbrt-v4 scene, with its warnings in the parts.
 pub fn load_parts(path: &Path, options: &LoadOptions) -> Result<SceneParts, SceneError> {
-    let imported = import::import(path, options.lenient)?;
-    for w in &imported.warnings {
-        eprintln!("warning: {w}");
-    }
-    Ok(imported.parts)
+    import::import(path, options.lenient)
 }
 
 /// Whether `path` names a pbrt scene (by its extension).

@@ -2,6 +2,7 @@
 //! (`"type name" value` or `"type name" [ values ]`), checked for type and arity here so the
 //! importer sees only well-formed values.
 
+use super::directives::{self, Form};
 use super::tokenizer::{Kind, LexError, Token, Tokenizer};
 use std::cell::Cell;
 
@@ -366,42 +367,9 @@ impl Directive {
     }
 }
 
-/// What follows a directive's name.
-enum Form {
-    Nothing,
-    Numbers(usize),
-    /// 16 numbers, bracketed or not.
-    Matrix,
-    Strings(usize),
-    /// One bare word (ActiveTransform).
-    Word,
-    /// `n` strings, then parameters.
-    StringsParams(usize),
-    /// One or two strings (MediumInterface).
-    OneOrTwoStrings,
-    ParamsOnly,
-}
-
+/// What follows `name`, from the table of directives.
 fn form(name: &str) -> Option<Form> {
-    Some(match name {
-        "WorldBegin" | "WorldEnd" | "AttributeBegin" | "AttributeEnd" | "TransformBegin"
-        | "TransformEnd" | "ObjectEnd" | "ReverseOrientation" | "Identity" => Form::Nothing,
-        "Translate" | "Scale" => Form::Numbers(3),
-        "Rotate" => Form::Numbers(4),
-        "LookAt" => Form::Numbers(9),
-        "TransformTimes" => Form::Numbers(2),
-        "Transform" | "ConcatTransform" => Form::Matrix,
-        "CoordinateSystem" | "CoordSysTransform" | "NamedMaterial" | "ObjectBegin"
-        | "ObjectInstance" | "Include" | "Import" | "ColorSpace" => Form::Strings(1),
-        "ActiveTransform" => Form::Word,
-        "Camera" | "Film" | "Sampler" | "PixelFilter" | "Integrator" | "Accelerator" | "Shape"
-        | "Material" | "LightSource" | "AreaLightSource" | "MakeNamedMaterial"
-        | "MakeNamedMedium" | "Attribute" => Form::StringsParams(1),
-        "Texture" => Form::StringsParams(3),
-        "MediumInterface" => Form::OneOrTwoStrings,
-        "Option" => Form::ParamsOnly,
-        _ => return None,
-    })
+    directives::find(name).map(|spec| spec.form)
 }
 
 pub struct Parser<'a> {

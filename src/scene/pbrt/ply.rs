@@ -3,8 +3,15 @@
 //! the payload is decoded here straight into flat arrays, so no face or vertex allocates (the
 //! crate's element API builds one value, and one `Vec` per face list, for each element).
 
+use crate::files::snippet;
 use ply_rs_bw::parser::{Parser, Reader};
 use ply_rs_bw::ply::{DefaultElement, ElementDef, Encoding, PropertyType, ScalarType};
+
+/// The most elements of one kind a file may declare: vertex indices are 32-bit.
+const MAX_COUNT: usize = u32::MAX as usize;
+
+/// The fewest vertices a face's index list holds.
+const MIN_FACE_VERTICES: usize = 3;
 
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct PlyMesh {
@@ -21,8 +28,16 @@ pub fn parse(bytes: &[u8]) -> Result<PlyMesh, String> {
     let mut reader = Reader::new(bytes);
     let header = Parser::<DefaultElement>::new()
         .read_header(&mut reader)
-        .map_err(|e| format!("bad PLY header: {e}"))?;
+        .map_err(|e| {
+            let lines: Vec<_> = e
+                .to_string()
+                .lines()
+                .map(|l| snippet(l.trim()).into_owned())
+                .collect();
+            format!("bad PLY header: {}", lines.join("; "))
+        })?;
     let payload = reader.into_inner();
+    check_counts(&header.elements)?;
     match header.encoding {
         Encoding::Ascii => decode(
             &header.elements,
@@ -46,6 +61,46 @@ pub fn parse(bytes: &[u8]) -> Result<PlyMesh, String> {
             },
         ),
     }
+}
+
+/// Refuses a count beyond any mesh's before anything is read.
+fn check_counts(elements: &ply_rs_bw::ply::KeyMap<ElementDef>) -> Result<(), String> {
+    for (name, element) in elements {
+        if element.count > MAX_COUNT {
+            return Err(format!(
+                "the header declares {} '{}' elements; at most {MAX_COUNT} are read",
+                element.count,
+                snippet(name)
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// How many of `element` the rest of the body can hold at most, which bounds what is reserved
+/// for it: a header may claim 2^32 faces over a body of a few bytes, and the decoding loop
+/// then stops at the body's end with a message, having asked for no more memory than the
+/// file's size warrants. Each value takes at least its size in binary, a digit and a
+/// separator in ASCII; a face's index list its count and three indices.
+fn room<S: Scalars>(source: &S, element: &ElementDef) -> usize {
+    let face = element.name == "face";
+    let each: usize = element
+        .properties
+        .iter()
+        .map(|(property, p)| match &p.data_type {
+            PropertyType::Scalar(t) => S::least(t),
+            PropertyType::List(count, item) if face && is_index_list(property) => {
+                S::least(count) + MIN_FACE_VERTICES * S::least(item)
+            }
+            PropertyType::List(count, _) => S::least(count),
+        })
+        .sum();
+    // The last ASCII value needs no separator after it.
+    (source.remaining() + 1) / each.max(1)
+}
+
+fn is_index_list(property: &str) -> bool {
+    matches!(property, "vertex_indices" | "vertex_index")
 }
 
 fn decode<S: Scalars>(
@@ -83,6 +138,10 @@ enum Short {
 /// compiled for it.
 trait Scalars {
     fn scalar(&mut self, ty: &ScalarType) -> Result<f64, Short>;
+    /// The bytes not read yet.
+    fn remaining(&self) -> usize;
+    /// The fewest bytes a value of `ty` takes.
+    fn least(ty: &ScalarType) -> usize;
 }
 
 struct Binary<'a, const BIG_ENDIAN: bool> {
@@ -118,6 +177,19 @@ impl<const BIG_ENDIAN: bool> Scalars for Binary<'_, BIG_ENDIAN> {
             ScalarType::Double => f64::from_le_bytes(self.take()?),
         })
     }
+
+    fn remaining(&self) -> usize {
+        self.bytes.len().saturating_sub(self.pos)
+    }
+
+    fn least(ty: &ScalarType) -> usize {
+        match ty {
+            ScalarType::Char | ScalarType::UChar => 1,
+            ScalarType::Short | ScalarType::UShort => 2,
+            ScalarType::Int | ScalarType::UInt | ScalarType::Float => 4,
+            ScalarType::Double => 8,
+        }
+    }
 }
 
 struct AsciiSource<'a> {
@@ -139,7 +211,15 @@ impl Scalars for AsciiSource<'_> {
         }
         let tok = String::from_utf8_lossy(&self.text[start..self.pos]);
         tok.parse::<f64>()
-            .map_err(|_| Short::Bad(format!("'{tok}' is not a number")))
+            .map_err(|_| Short::Bad(format!("'{}' is not a number", snippet(&tok))))
+    }
+
+    fn remaining(&self) -> usize {
+        self.text.len().saturating_sub(self.pos)
+    }
+
+    fn least(_ty: &ScalarType) -> usize {
+        2
     }
 }
 
@@ -185,7 +265,7 @@ fn read_vertices<S: Scalars>(
             Slot::Ignore => {}
         }
         if !matches!(slot, Slot::Ignore) && matches!(p.data_type, PropertyType::List(..)) {
-            return Err(format!("vertex property '{name}' is a list"));
+            return Err(format!("vertex property '{}' is a list", snippet(name)));
         }
         slots.push((slot, p.data_type.clone()));
     }
@@ -195,12 +275,13 @@ fn read_vertices<S: Scalars>(
     let normals = has_normal == [true; 3];
     let uvs = has_uv == [true; 2];
     let n = element.count;
-    mesh.positions.reserve_exact(n);
+    let fit = n.min(room(source, element));
+    mesh.positions.reserve_exact(fit);
     if normals {
-        mesh.normals.reserve_exact(n);
+        mesh.normals.reserve_exact(fit);
     }
     if uvs {
-        mesh.uvs.reserve_exact(n);
+        mesh.uvs.reserve_exact(fit);
     }
     for i in 0..n {
         let (mut p, mut nn, mut uv) = ([0f32; 3], [0f32; 3], [0f32; 2]);
@@ -254,13 +335,10 @@ fn read_faces<S: Scalars>(
     let list = element
         .properties
         .iter()
-        .position(|(name, p)| {
-            matches!(name.as_str(), "vertex_indices" | "vertex_index")
-                && matches!(p.data_type, PropertyType::List(..))
-        })
+        .position(|(name, p)| is_index_list(name) && matches!(p.data_type, PropertyType::List(..)))
         .ok_or("the face element has no vertex_indices list")?;
     let n = element.count;
-    mesh.triangles.reserve(n);
+    mesh.triangles.reserve(n.min(room(source, element)));
     for f in 0..n {
         for (k, (_, p)) in element.properties.iter().enumerate() {
             match &p.data_type {
@@ -302,7 +380,7 @@ fn read_faces<S: Scalars>(
 }
 
 fn skip_element<S: Scalars>(source: &mut S, element: &ElementDef) -> Result<(), String> {
-    let what = format!("'{}' elements", element.name);
+    let what = format!("'{}' elements", snippet(&element.name));
     for i in 0..element.count {
         for (_, p) in &element.properties {
             match &p.data_type {
@@ -397,5 +475,35 @@ pub(crate) mod tests {
         assert_eq!(mesh2.positions, mesh.positions);
         assert_eq!(mesh2.triangles, mesh.triangles);
         assert!(parse(b"ply\nformat ascii 1.0\nelement vertex 1\nend_header\n").is_err());
+    }
+
+    #[test]
+    fn counts_beyond_the_body_end_in_a_message_not_an_allocation() {
+        let three = b"0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+        let ply = |vertices: u64, faces: u64| {
+            let mut out = format!(
+                "ply\nformat ascii 1.0\nelement vertex {vertices}\nproperty float x\n\
+                 property float y\nproperty float z\nelement face {faces}\n\
+                 property list uchar uint vertex_indices\nend_header\n"
+            )
+            .into_bytes();
+            out.extend_from_slice(three);
+            out
+        };
+        assert_eq!(parse(&ply(3, 1)).unwrap().triangles, vec![[0, 1, 2]]);
+        let err = parse(&ply(3, u32::MAX as u64)).unwrap_err();
+        assert!(err.contains("ends after 1 of 4294967295 faces"), "{err}");
+        let err = parse(&ply(1 << 40, 1)).unwrap_err();
+        assert!(err.contains("1099511627776 'vertex' elements"), "{err}");
+        // What is reserved is what the body can hold.
+        let body = Binary::<false> {
+            bytes: &[0; 100],
+            pos: 0,
+        };
+        let header = Parser::<DefaultElement>::new()
+            .read_header(&mut Reader::new(&ply(1 << 30, 1 << 30)[..]))
+            .unwrap();
+        assert_eq!(room(&body, &header.elements["vertex"]), 101 / 12);
+        assert_eq!(room(&body, &header.elements["face"]), 101 / 13);
     }
 }

@@ -1,7 +1,17 @@
 //! pbrt-v4's lexical level: bare words and numbers, quoted strings, `[`, `]`, and `#` comments
 //! to the end of the line. Tokens borrow the file's text; each carries its line.
 
+use crate::files::snippet;
 use std::borrow::Cow;
+
+/// The longest bare token: pbrt's directive names, numbers and bools are far shorter, so a
+/// longer one is a damaged or hostile file, refused before any message quotes it in full.
+pub const MAX_BARE: usize = 256;
+
+/// The longest quoted string: names and types are short, and scene files name their textures
+/// and meshes by short relative paths. Kept low enough that a message quoting a whole string
+/// and a bare word stays under 2,000 bytes.
+pub const MAX_STRING: usize = 1024;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
@@ -140,9 +150,13 @@ impl<'a> Tokenizer<'a> {
                         }
                     }
                     self.pos = i + 1;
+                    let text = &self.src[start..i];
+                    if text.len() > MAX_STRING {
+                        return Err(self.too_long("a quoted string", text, MAX_STRING));
+                    }
                     return Ok(Some(Token {
                         kind: Kind::Str,
-                        text: &self.src[start..i],
+                        text,
                         line: self.line,
                     }));
                 }
@@ -156,13 +170,29 @@ impl<'a> Tokenizer<'a> {
                     {
                         self.pos += 1;
                     }
+                    let text = &self.src[start..self.pos];
+                    if text.len() > MAX_BARE {
+                        return Err(self.too_long("a bare word", text, MAX_BARE));
+                    }
                     return Ok(Some(Token {
                         kind: Kind::Bare,
-                        text: &self.src[start..self.pos],
+                        text,
                         line: self.line,
                     }));
                 }
             }
+        }
+    }
+}
+
+impl Tokenizer<'_> {
+    fn too_long(&self, what: &str, text: &str, max: usize) -> LexError {
+        LexError {
+            line: self.line,
+            message: format!(
+                "{what} longer than the {max} bytes a pbrt file may use: '{}'",
+                snippet(text)
+            ),
         }
     }
 }
@@ -202,5 +232,23 @@ mod tests {
         let err = all("WorldBegin\n\nShape \"sphere\n\"x\"").unwrap_err();
         assert_eq!(err.line, 3);
         assert!(all("\"abc\\").is_err());
+    }
+
+    #[test]
+    fn huge_tokens_are_refused_with_an_excerpt() {
+        let word = format!("WorldBegin\n\nFoo{}", "x".repeat(1 << 20));
+        let err = all(&word).unwrap_err();
+        assert_eq!(err.line, 3);
+        assert!(err.message.contains("1048579 bytes"), "{}", err.message);
+        assert!(err.message.len() < 200, "{}", err.message);
+        let string = format!("Shape \"{}\"", "y".repeat(MAX_STRING + 1));
+        let err = all(&string).unwrap_err();
+        assert!(err.message.len() < 200, "{}", err.message);
+        let longest = format!(
+            "Shape \"{}\" {}",
+            "y".repeat(MAX_STRING),
+            "1".repeat(MAX_BARE)
+        );
+        assert_eq!(all(&longest).unwrap().len(), 3);
     }
 }

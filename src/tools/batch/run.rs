@@ -4,8 +4,8 @@
 use super::cell::{make_output, Action, Budget, Cell, CellKind, ReferenceSource, State};
 use super::{BatchError, Plan};
 use crate::accel::AccelKind;
-use crate::render::{self, NewRender, RenderError, StopAfter, StopFlag};
-use crate::scene::Scene;
+use crate::render::{self, NewRender, RenderError, RunEvent, RunWarning, StopAfter, StopFlag};
+use crate::scene::{Scene, Warning};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
@@ -199,6 +199,10 @@ pub enum Event<'a> {
     Iteration { iterations: u64, elapsed: Duration },
     /// The current cell is up to date.
     Finished,
+    /// Loading the current cell's scene went on past a problem.
+    Warning(&'a Warning),
+    /// Rendering the current cell went on past a problem.
+    RunWarning(&'a RunWarning),
 }
 
 /// An `indicatif` bar over a plan's cells, with the current cell and its iterations.
@@ -240,11 +244,18 @@ impl ProgressBar {
                 elapsed.as_secs_f64()
             )),
             Event::Finished => self.bar.inc(1),
+            // The caller shows warnings (see `suspend`).
+            Event::Warning(_) | Event::RunWarning(_) => {}
         }
     }
 
     pub fn finish(&self) {
         self.bar.finish();
+    }
+
+    /// Runs `f` (which may write to the terminal) with the bar hidden.
+    pub fn suspend<R>(&self, f: impl FnOnce() -> R) -> R {
+        self.bar.suspend(f)
     }
 }
 
@@ -314,6 +325,17 @@ pub fn run(
     Ok(ran)
 }
 
+/// A render's progress as [`Event::Iteration`]s, its warnings as [`Event::Warning`]s.
+fn iterations<'a>(on: &'a mut dyn FnMut(&Event)) -> impl FnMut(RunEvent) + 'a {
+    |event| match event {
+        RunEvent::Iteration(p) => on(&Event::Iteration {
+            iterations: p.iterations,
+            elapsed: p.elapsed,
+        }),
+        RunEvent::Warning(w) => on(&Event::RunWarning(w)),
+    }
+}
+
 pub(super) fn run_cell(
     plan: &Plan,
     cell: &Cell,
@@ -324,12 +346,6 @@ pub(super) fn run_cell(
     on: &mut dyn FnMut(&Event),
 ) -> Result<(), BatchError> {
     let err = render_error(cell);
-    let mut progress = |p: &render::Progress| {
-        on(&Event::Iteration {
-            iterations: p.iterations,
-            elapsed: p.elapsed,
-        })
-    };
     match action {
         Action::Merge(parts) => Ok(crate::tools::merge(&cell.output, parts)?),
         Action::Render => {
@@ -349,18 +365,24 @@ pub(super) fn run_cell(
             if cached.as_ref().is_none_or(|(p, _)| *p != cell.scene_file) {
                 *cached = None;
                 let loaded = setup.load_scene().map_err(|e| err(RenderError::Scene(e)))?;
+                for w in &loaded.warnings {
+                    on(&Event::Warning(w));
+                }
                 *cached = Some((cell.scene_file.clone(), loaded));
             }
             let Some((_, scene)) = cached.as_ref() else {
                 return Ok(());
             };
             let mut job = setup.job(scene).map_err(&err)?;
-            job.run(stop_after(cell.budget, 0), stop, &mut progress)
+            job.run(stop_after(cell.budget, 0), stop, &mut iterations(on))
                 .map_err(&err)
         }
         Action::Continue(left) => {
             let (film, metadata) = crate::film::exr::read_render(&cell.output)?;
             let scene = render::load_for_continue(&metadata, accel, false).map_err(&err)?;
+            for w in &scene.warnings {
+                on(&Event::Warning(w));
+            }
             let earlier = film.iterations;
             let mut job = render::continued_job(
                 &scene,
@@ -372,7 +394,7 @@ pub(super) fn run_cell(
                 None,
             )
             .map_err(&err)?;
-            job.run(stop_after(*left, earlier), stop, &mut progress)
+            job.run(stop_after(*left, earlier), stop, &mut iterations(on))
                 .map_err(&err)
         }
     }

@@ -1,0 +1,190 @@
+//! Lights: area lights (emissive variants of their shapes' materials), point and distant
+//! lights, and the infinite light as a constant sky or an environment image.
+
+use super::import::{Importer, Loc};
+use super::parser::Directive;
+use crate::color::Rgb;
+use crate::light::{EnvMapDesc, Light, SceneBounds, SkyDesc};
+use crate::options::OptionName;
+use crate::scene::SceneError;
+use crate::texture;
+use glam::{DMat3, DVec3, Mat3, Vec3};
+use std::sync::Arc;
+
+/// The area light in the graphics state.
+#[derive(Clone, Debug)]
+pub(super) struct AreaLight {
+    pub(super) radiance: Rgb,
+    pub(super) loc: Loc,
+}
+
+impl Importer {
+    /// AreaLightSource: shapes after it (in its block) emit.
+    pub(super) fn area_light_source(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
+        let pe = self.pe(loc.file);
+        if d.str_arg(0) != "diffuse" {
+            return Err(self.at(
+                loc,
+                format!("AreaLightSource '{}' is unknown (diffuse)", d.str_arg(0)),
+            ));
+        }
+        let l = self.spectrum(loc, &d.params, "L", Rgb::WHITE)?;
+        let scale = d.params.float("scale", 1.0).map_err(&pe)?;
+        if d.params.bool("twosided", false).map_err(&pe)? {
+            self.warn(
+                loc,
+                "AreaLightSource: twosided is not supported; emits on the front side only",
+            );
+        }
+        if d.params.string("filename").map_err(&pe)?.is_some() {
+            self.warn(
+                loc,
+                "AreaLightSource: image emission is not supported; uses L",
+            );
+        }
+        self.state.area_light = Some(AreaLight {
+            radiance: l * scale,
+            loc,
+        });
+        Ok(())
+    }
+
+    pub(super) fn light_source(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
+        let pe = self.pe(loc.file);
+        let p = &d.params;
+        let scale = p.float("scale", 1.0).map_err(&pe)?;
+        for ignored in ["power", "illuminance"] {
+            if p.float(ignored, -1.0).map_err(&pe)? > 0.0 {
+                self.warn(
+                    loc,
+                    format!("LightSource: '{ignored}' not supported; scale used"),
+                );
+            }
+        }
+        let ctm = self.state.ctm;
+        match d.str_arg(0) {
+            "point" => {
+                let intensity = self.spectrum(loc, p, "I", Rgb::WHITE)? * scale;
+                let from = DVec3::from_array(p.vec3("from", [0.0; 3]).map_err(&pe)?);
+                self.lights.push(Light::Point {
+                    position: ctm.transform_point3(from).as_vec3(),
+                    intensity,
+                });
+            }
+            "distant" => {
+                let irradiance = self.spectrum(loc, p, "L", Rgb::WHITE)? * scale;
+                let from = DVec3::from_array(p.vec3("from", [0.0; 3]).map_err(&pe)?);
+                let to = DVec3::from_array(p.vec3("to", [0.0, 0.0, 1.0]).map_err(&pe)?);
+                let dir = ctm.transform_vector3(to - from);
+                if dir.length_squared() == 0.0 {
+                    return Err(self.at(loc, "LightSource distant: from and to coincide"));
+                }
+                self.lights.push(Light::Directional {
+                    direction: dir.normalize().as_vec3(),
+                    irradiance,
+                    scene: SceneBounds::new(Vec3::ZERO, Vec3::ONE),
+                });
+            }
+            "infinite" => {
+                if self.sky.is_some() || self.env_image.is_some() {
+                    self.warn(loc, "a second infinite light ignored");
+                    p.mark_all_used();
+                    return Ok(());
+                }
+                let file = p.string("filename").map_err(&pe)?.map(str::to_string);
+                let l = self.spectrum(loc, p, "L", Rgb::WHITE)? * scale;
+                match file {
+                    Some(file) => {
+                        let path = self.resolve(&file);
+                        if path.exists() {
+                            self.env_image = Some((path, scale, ctm, loc));
+                        } else if self.lenient {
+                            self.warn(
+                                loc,
+                                format!(
+                                    "LightSource infinite: {} is missing; a constant sky of radiance {scale} instead",
+                                    path.display()
+                                ),
+                            );
+                            self.sky = Some(constant_sky(Rgb::splat(scale)));
+                        } else {
+                            return Err(self.at(
+                                loc,
+                                format!(
+                                    "LightSource infinite: {} is missing (use {} for a constant sky)",
+                                    path.display(),
+                                    OptionName("lenient")
+                                ),
+                            ));
+                        }
+                    }
+                    None => self.sky = Some(constant_sky(l)),
+                }
+            }
+            other @ ("spot" | "goniometric" | "projection") => {
+                self.warn(loc, format!("LightSource '{other}' not supported; skipped"));
+                p.mark_all_used();
+            }
+            other => {
+                return Err(self.at(loc, format!("LightSource '{other}' is unknown")));
+            }
+        }
+        Ok(())
+    }
+
+    /// The infinite light's image: pbrt-v4's equal-area octahedral square, resampled to the
+    /// equirectangular image vmerge's environment light takes, in world space.
+    pub(super) fn env_map(&mut self) -> Result<Option<EnvMapDesc>, SceneError> {
+        let Some((path, scale, ctm, loc)) = self.env_image.take() else {
+            return Ok(None);
+        };
+        let read = std::fs::read(&path)
+            .map_err(|e| e.to_string())
+            .and_then(|bytes| Ok((texture::read(&path)?, bytes)));
+        let (image, bytes) = match read {
+            Ok(x) => x,
+            Err(message) => {
+                let message = format!(
+                    "LightSource infinite: cannot read {}: {message}",
+                    path.display()
+                );
+                if !self.lenient {
+                    return Err(self.at(loc, message));
+                }
+                self.warn(
+                    loc,
+                    format!("{message}; a constant sky of radiance {scale} instead"),
+                );
+                self.sky = Some(constant_sky(Rgb::splat(scale)));
+                return Ok(None);
+            }
+        };
+        if image.width != image.height {
+            return Err(self.at(
+                loc,
+                format!(
+                    "LightSource infinite: {} is {}x{}, not square (pbrt-v4's environment images are equal-area octahedral squares)",
+                    path.display(),
+                    image.width,
+                    image.height
+                ),
+            ));
+        }
+        self.builder.input(&path, &bytes);
+        let light_from_world = DMat3::from_mat4(ctm).inverse();
+        let resampled = super::envmap::equirect_from_octahedral(&image, light_from_world);
+        Ok(Some(EnvMapDesc {
+            image: Arc::new(resampled),
+            scale,
+            rotation: Mat3::IDENTITY,
+        }))
+    }
+}
+
+fn constant_sky(l: Rgb) -> SkyDesc {
+    SkyDesc {
+        horizon: l,
+        zenith: l,
+        up: Vec3::Y,
+    }
+}

@@ -1,0 +1,309 @@
+//! Textures: the Texture directive (image maps, constants, scales), spectrum and float
+//! parameters that may name a texture, and the images read for the materials at the end.
+
+use super::import::{Importer, Loc};
+use super::material::named_spectrum;
+use super::parser::{Directive, ParamList, Spectrum, TexOr};
+use crate::color::Rgb;
+use crate::options::OptionName;
+use crate::scene::{MaterialTextures, SceneError};
+use std::collections::HashMap;
+use std::path::PathBuf;
+
+/// A spectrum-valued texture, as far as vmerge follows it.
+#[derive(Clone, Debug)]
+pub(super) enum Tex {
+    Constant(Rgb),
+    /// An image file that exists, times `scale`, and its Texture directive.
+    Image {
+        path: PathBuf,
+        scale: Rgb,
+        loc: Loc,
+    },
+    /// An image file that is missing (with `--lenient`): the material's constant stands in.
+    Missing,
+}
+
+#[derive(Clone, Debug)]
+pub(super) enum FloatTex {
+    Constant(f32),
+    Image,
+}
+
+impl Importer {
+    pub(super) fn texture(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
+        let pe = self.pe(loc.file);
+        let (name, ty, class) = (d.str_arg(0), d.str_arg(1), d.str_arg(2));
+        let spectrum = match ty {
+            "spectrum" | "color" => true,
+            "float" => false,
+            other => {
+                return Err(self.at(
+                    loc,
+                    format!("Texture '{name}': type '{other}' is neither spectrum nor float"),
+                ))
+            }
+        };
+        let p = &d.params;
+        let tex = match class {
+            "imagemap" => {
+                let file = p.string("filename").map_err(&pe)?.ok_or_else(|| {
+                    self.at(
+                        loc,
+                        format!("Texture '{name}': imagemap without a filename"),
+                    )
+                })?;
+                let scale = p.float("scale", 1.0).map_err(&pe)?;
+                if p.bool("invert", false).map_err(&pe)? {
+                    self.warn(loc, format!("Texture '{name}': invert ignored"));
+                }
+                p.mark_used(&["filter", "wrap", "encoding", "maxanisotropy"]);
+                let path = self.resolve(file);
+                if path.exists() {
+                    Tex::Image {
+                        path,
+                        scale: Rgb::splat(scale),
+                        loc,
+                    }
+                } else if self.lenient {
+                    self.warn(
+                        loc,
+                        format!(
+                            "Texture '{name}': {} is missing; its materials use their constant instead",
+                            path.display()
+                        ),
+                    );
+                    Tex::Missing
+                } else {
+                    return Err(self.at(
+                        loc,
+                        format!(
+                            "Texture '{name}': {} is missing (use {} to render with the material's constant)",
+                            path.display(),
+                            OptionName("lenient")
+                        ),
+                    ));
+                }
+            }
+            "constant" if spectrum => Tex::Constant(self.spectrum(loc, p, "value", Rgb::WHITE)?),
+            "constant" => {
+                let v = p.float("value", 1.0).map_err(&pe)?;
+                self.float_textures
+                    .insert(name.to_string(), FloatTex::Constant(v));
+                return Ok(());
+            }
+            "scale" if spectrum => {
+                let base = self.spectrum_texture(loc, p, "tex", Rgb::WHITE)?;
+                let scale = match p.float_texture("scale").map_err(&pe)? {
+                    None => 1.0,
+                    Some((TexOr::Value(v), _)) => v,
+                    Some((TexOr::Texture(t), line)) => {
+                        self.warn(
+                            Loc { line, ..loc },
+                            format!(
+                                "Texture '{name}': scale by texture '{t}' not supported; 1 used"
+                            ),
+                        );
+                        1.0
+                    }
+                };
+                match base {
+                    Tex::Constant(c) => Tex::Constant(c * scale),
+                    Tex::Image {
+                        path,
+                        scale: s,
+                        loc,
+                    } => Tex::Image {
+                        path,
+                        scale: s * scale,
+                        loc,
+                    },
+                    Tex::Missing => Tex::Missing,
+                }
+            }
+            other => {
+                self.warn(
+                    loc,
+                    format!("Texture '{name}': class '{other}' not supported; grey 0.5 used"),
+                );
+                p.mark_all_used();
+                if spectrum {
+                    Tex::Constant(Rgb::splat(0.5))
+                } else {
+                    self.float_textures
+                        .insert(name.to_string(), FloatTex::Constant(0.5));
+                    return Ok(());
+                }
+            }
+        };
+        if spectrum {
+            self.textures.insert(name.to_string(), tex);
+        } else {
+            self.float_textures
+                .insert(name.to_string(), FloatTex::Image);
+        }
+        Ok(())
+    }
+
+    /// An RGB value for a spectrum parameter, with a warning where it is approximated.
+    pub(super) fn spectrum(
+        &mut self,
+        loc: Loc,
+        params: &ParamList,
+        name: &str,
+        default: Rgb,
+    ) -> Result<Rgb, SceneError> {
+        let Some((s, line)) = params.spectrum(name).map_err(self.pe(loc.file))? else {
+            return Ok(default);
+        };
+        self.spectrum_value(Loc { line, ..loc }, name, s)
+    }
+
+    pub(super) fn spectrum_value(
+        &mut self,
+        loc: Loc,
+        name: &str,
+        s: Spectrum,
+    ) -> Result<Rgb, SceneError> {
+        let rgb = match s {
+            Spectrum::Rgb(v) => Rgb::from_array(v),
+            Spectrum::Named(n) => match named_spectrum(&n) {
+                Some(c) => c,
+                None => {
+                    self.warn(
+                        loc,
+                        format!("'{name}': unknown named spectrum '{n}'; grey 1 used"),
+                    );
+                    Rgb::WHITE
+                }
+            },
+            Spectrum::Blackbody(t) => {
+                self.warn(
+                    loc,
+                    format!("'{name}': blackbody {t} K approximated as white"),
+                );
+                Rgb::WHITE
+            }
+            Spectrum::Sampled(v) => {
+                let values: Vec<f32> = v.chunks_exact(2).map(|p| p[1]).collect();
+                let mean = values.iter().sum::<f32>() / values.len().max(1) as f32;
+                self.warn(
+                    loc,
+                    format!("'{name}': sampled spectrum approximated by its mean {mean}"),
+                );
+                Rgb::splat(mean)
+            }
+        };
+        if !rgb.is_finite() || rgb.min_component() < 0.0 {
+            return Err(self.at(loc, format!("'{name}' {:?} is negative", rgb.to_array())));
+        }
+        Ok(rgb)
+    }
+
+    /// A spectrum parameter that may name a texture.
+    pub(super) fn spectrum_texture(
+        &mut self,
+        loc: Loc,
+        params: &ParamList,
+        name: &str,
+        default: Rgb,
+    ) -> Result<Tex, SceneError> {
+        match params.spectrum_texture(name).map_err(self.pe(loc.file))? {
+            None => Ok(Tex::Constant(default)),
+            Some((TexOr::Value(s), line)) => Ok(Tex::Constant(self.spectrum_value(
+                Loc { line, ..loc },
+                name,
+                s,
+            )?)),
+            Some((TexOr::Texture(t), line)) => match self.textures.get(&t) {
+                Some(tex) => Ok(tex.clone()),
+                None => Err(self.at(
+                    Loc { line, ..loc },
+                    format!("'{name}': no spectrum texture named '{t}'"),
+                )),
+            },
+        }
+    }
+
+    /// A float parameter that may name a texture (only constants are followed).
+    pub(super) fn float_param(
+        &mut self,
+        loc: Loc,
+        params: &ParamList,
+        name: &str,
+        default: f32,
+    ) -> Result<Option<f32>, SceneError> {
+        match params.float_texture(name).map_err(self.pe(loc.file))? {
+            None => Ok(None),
+            Some((TexOr::Value(v), _)) => Ok(Some(v)),
+            Some((TexOr::Texture(t), line)) => match self.float_textures.get(&t) {
+                Some(FloatTex::Constant(v)) => Ok(Some(*v)),
+                Some(FloatTex::Image) => {
+                    self.warn(
+                        Loc { line, ..loc },
+                        format!(
+                            "'{name}': float image texture '{t}' not supported; {default} used"
+                        ),
+                    );
+                    Ok(Some(default))
+                }
+                None => Err(self.at(
+                    Loc { line, ..loc },
+                    format!("'{name}': no float texture named '{t}'"),
+                )),
+            },
+        }
+    }
+
+    /// Decodes the materials' images (in parallel, each file once) and gives each material its
+    /// texture: the image times the material's factor (a scaled copy where that is not 1).
+    pub(super) fn load_textures(&mut self) -> Result<(), SceneError> {
+        let mut paths: Vec<PathBuf> = self
+            .material_textures
+            .iter()
+            .flatten()
+            .map(|(p, _, _)| p.clone())
+            .collect();
+        paths.sort();
+        paths.dedup();
+        let decoded = self.builder.images(&paths);
+        let mut images = HashMap::new();
+        for (path, result) in paths.iter().zip(decoded) {
+            match result {
+                Ok(image) => {
+                    images.insert(path.clone(), image);
+                }
+                Err(message) => {
+                    let loc = self
+                        .material_textures
+                        .iter()
+                        .flatten()
+                        .find(|(p, _, _)| p == path)
+                        .map_or(Loc { file: 0, line: 1 }, |&(_, _, loc)| loc);
+                    if !self.lenient {
+                        return Err(self.at(loc, message));
+                    }
+                    self.warn(loc, format!("{message}; its materials use their constant"));
+                }
+            }
+        }
+        let pending = std::mem::take(&mut self.material_textures);
+        for (material, entry) in pending.iter().enumerate() {
+            let Some((path, factor, _)) = entry else {
+                continue;
+            };
+            let Some(image) = images.get(path) else {
+                continue;
+            };
+            let kd = self.builder.texture(path, image, *factor);
+            self.builder.set_textures(
+                material as u32,
+                MaterialTextures {
+                    kd: Some(kd),
+                    ks: None,
+                },
+            );
+        }
+        Ok(())
+    }
+}
