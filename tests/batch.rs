@@ -488,6 +488,25 @@ radius = [0.05, 0.1]
     assert!(status.contains("7 cells: 7 done"), "{status}");
     let loaded = Plan::load(&plan).unwrap();
     assert!(loaded.cells.iter().all(|c| c.output.exists()));
+    // With a submission recorded but no squeue or sacct to ask, the files alone tell.
+    std::fs::write(
+        dir.path().join("out/slurm-jobs.toml"),
+        "[[task]]\ncell = \"cornell-box.floor.reference\"\njob = \"101\"\ntask = 0\nstage = 1\n",
+    )
+    .unwrap();
+    let out = vmerge()
+        .args(["batch", "status", plan_arg])
+        .env("PATH", &fake)
+        .output()
+        .unwrap();
+    let status = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{out:?}");
+    assert!(
+        status.contains("unknown  101_0      -            cornell-box.floor.reference")
+            && status.contains("neither squeue nor sacct answered")
+            && status.contains("7 cells: 7 done"),
+        "{status}"
+    );
     // A task run again (a requeue after its end) finds its cell done and does nothing.
     let before = modification_times(&dir.path().join("out"));
     let again = Command::new("bash")

@@ -503,6 +503,10 @@ fn submitted_plan_runs_in_stages_and_matches_in_process() {
             .all(|(_, (word, _, _))| word == "queued"),
         "the cells wait for their references: {status}"
     );
+    // Submitting again while its cells wait would give a cell two tasks.
+    let twice = cluster.vmerge(&["batch", there_arg, "--submit"]);
+    assert_eq!(twice.status.code(), Some(1), "{twice:?}");
+    assert!(String::from_utf8_lossy(&twice.stderr).contains("still queued or running"));
     cluster.wait_jobs(
         &jobs,
         Duration::from_secs(150),
