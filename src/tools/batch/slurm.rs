@@ -618,3 +618,81 @@ pub fn run_one(
     on(&Event::Finished);
     Ok(matches!(cell.state(&plan.cells), State::Done { .. }))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::options::Technique;
+
+    #[test]
+    fn squeue_and_sacct_states_read_alike() {
+        let mut states = HashMap::new();
+        read_states(
+            "12_0|CANCELLED by 0\n12_1|COMPLETED\n\nnoise\n",
+            &mut states,
+        );
+        assert_eq!(states.len(), 2);
+        assert_eq!(states["12_0"], "CANCELLED");
+        assert_eq!(states["12_1"], "COMPLETED");
+        for (state, word) in [
+            ("PENDING", "queued"),
+            ("REQUEUED", "queued"),
+            ("RUNNING", "running"),
+            ("COMPLETING", "running"),
+            ("COMPLETED", "done"),
+            ("FAILED", "failed"),
+            ("TIMEOUT", "failed"),
+            ("CANCELLED", "failed"),
+            ("NODE_FAIL", "failed"),
+        ] {
+            assert_eq!(class(state), word, "{state}");
+        }
+    }
+
+    fn plan(dir: &Path, slurm: &str) -> Plan {
+        let file = dir.join("plan.toml");
+        std::fs::write(
+            &file,
+            format!(
+                "output = \"out\"\nresolution = [1000, 500]\nbudget = \"20m\"\nthreads = 4\n\
+                 {slurm}[[scene]]\nfile = \"{}/scenes/cornell-box/scene.toml\"\n\
+                 reference = {{ budget = \"1h\", parts = 2 }}\n\
+                 [[group]]\ntechniques = [\"vcm\"]\nradius = 0.01\n",
+                env!("CARGO_MANIFEST_DIR")
+            ),
+        )
+        .unwrap();
+        Plan::load(&file).unwrap()
+    }
+
+    #[test]
+    fn stages_time_limits_and_memory_follow_the_plan() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = plan(dir.path(), "");
+        let (stages, blocked) = stages(&p);
+        // The reference's two parts, their merge, the cell.
+        assert_eq!(stages, [vec![0, 1], vec![2], vec![3]]);
+        assert_eq!(blocked, 0);
+        // The longest budget (a part's 30 minutes), a fifth more, ten minutes; a merge ten.
+        assert_eq!(
+            time_limit(&p, &stages[0]),
+            Some(Duration::from_secs(46 * 60))
+        );
+        assert_eq!(
+            time_limit(&p, &stages[1]),
+            Some(Duration::from_secs(10 * 60))
+        );
+        assert_eq!(
+            time_limit(&p, &stages[2]),
+            Some(Duration::from_secs(34 * 60))
+        );
+        let need = crate::memory::estimate(Technique::Vcm, 500_000, u32::MAX, 3, 4).total();
+        assert_eq!(
+            memory_mib(&p, &stages[2]),
+            Some((need + MEMORY_ALLOWANCE).div_ceil(1 << 20))
+        );
+        let p = plan(dir.path(), "[slurm]\ntime_limit = \"1h\"\nmem = \"2G\"\n");
+        assert_eq!(time_limit(&p, &[0]), Some(Duration::from_secs(3600)));
+        assert_eq!(memory_mib(&p, &[3]), Some(2048));
+    }
+}
