@@ -77,18 +77,17 @@ fn missing() -> Option<String> {
         .collect();
     (!absent.is_empty()).then(|| {
         format!(
-            "{} not installed (scripts/setup-debian --tests installs slurm-wlm and munge)",
+            "{} not on the PATH (the daemons are in /usr/sbin; scripts/setup-debian --tests \
+             installs slurm-wlm and munge)",
             absent.join(", ")
         )
     })
 }
 
-fn free_port() -> u16 {
-    std::net::TcpListener::bind("127.0.0.1:0")
-        .unwrap()
-        .local_addr()
-        .unwrap()
-        .port()
+/// Two ports free now, for the controller and the node (held together, so they differ).
+fn free_ports() -> [u16; 2] {
+    let listeners = [(); 2].map(|()| std::net::TcpListener::bind("127.0.0.1:0").unwrap());
+    listeners.map(|l| l.local_addr().unwrap().port())
 }
 
 fn total_memory_mib() -> u64 {
@@ -127,6 +126,7 @@ impl Cluster {
         std::fs::set_permissions(&key, std::fs::Permissions::from_mode(0o400)).unwrap();
         let socket = d.join("munge/munge.socket");
         let conf = d.join("slurm.conf");
+        let ports = free_ports();
         let p = |name: &str| d.join(name).to_string_lossy().into_owned();
         std::fs::write(
             &conf,
@@ -160,8 +160,8 @@ KillWait=10
 NodeName=localhost NodeAddr=127.0.0.1 CPUs=2 RealMemory={} State=UNKNOWN
 PartitionName=debug Nodes=localhost Default=YES MaxTime=INFINITE State=UP
 ",
-                free_port(),
-                free_port(),
+                ports[0],
+                ports[1],
                 socket.display(),
                 p("state"),
                 p("spool"),
