@@ -257,14 +257,8 @@ pub fn slurm(plan: &Plan, program: &Path, file: &Path) -> Result<(Vec<usize>, us
         quote(&file.to_string_lossy())
     );
     s.push_str("set -euo pipefail\n");
-    for (
-        k,
-        StageScript {
-            text: script,
-            cells,
-        },
-    ) in scripts.iter().enumerate()
-    {
+    for (k, stage) in scripts.iter().enumerate() {
+        let (script, cells) = (&stage.text, &stage.cells);
         let dependency = if k == 0 {
             String::new()
         } else {
@@ -415,21 +409,18 @@ pub fn submit(plan: &Plan, program: &Path) -> Result<Submission, BatchError> {
         .map(|t| format!("{} ({})", t.cell, t.id()))
         .collect();
     if !busy.is_empty() {
-        return Err(BatchError::Busy {
-            cells: busy.join(", "),
-        });
+        // A sweep has hundreds of cells: the first few name the jobs.
+        let mut cells = busy[..busy.len().min(4)].join(", ");
+        if busy.len() > 4 {
+            let _ = write!(cells, " and {} more", busy.len() - 4);
+        }
+        return Err(BatchError::Busy { cells });
     }
     let (scripts, blocked) = scripts(plan, program)?;
     let mut record = earlier;
     let mut jobs = Vec::new();
-    for (
-        k,
-        StageScript {
-            text: script,
-            cells,
-        },
-    ) in scripts.iter().enumerate()
-    {
+    for (k, stage) in scripts.iter().enumerate() {
+        let (script, cells) = (&stage.text, &stage.cells);
         let mut args = vec!["--parsable".to_string()];
         if let Some((previous, _)) = jobs.last() {
             args.push(format!("--dependency=afterok:{previous}"));
