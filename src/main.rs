@@ -589,21 +589,38 @@ struct BatchArgs {
     dry_run: bool,
     /// Print one shell command per cell that can run now (for parallel -j N or xargs -P N);
     /// run them, then ask again until nothing is printed.
-    #[arg(long, conflicts_with_all = ["dry_run", "slurm"])]
+    #[arg(long, conflicts_with_all = ["dry_run", "slurm", "submit", "cell"])]
     jobs: bool,
-    /// Write an sbatch --array script with one array task per cell that can run now.
-    #[arg(long, value_name = "FILE", conflicts_with = "dry_run")]
+    /// Submit the plan to Slurm: one array job per stage (reference parts, their merges, the
+    /// cells measured against them), each after the one before (afterok); prints the job ids
+    /// and records them for `batch status`.
+    #[arg(long, conflicts_with_all = ["dry_run", "slurm", "cell"])]
+    submit: bool,
+    /// Write what --submit runs as a script to edit first: run it with bash to submit.
+    #[arg(long, value_name = "FILE", conflicts_with_all = ["dry_run", "cell"])]
     slurm: Option<PathBuf>,
+    /// Bring the cell of this name up to date (what each Slurm array task runs).
+    #[arg(long, value_name = "NAME", conflicts_with = "dry_run")]
+    cell: Option<String>,
     #[arg(long, value_parser = accel_parser(), default_value = AccelKind::default_kind().name())]
     accel: AccelKind,
 }
 
 #[derive(Subcommand)]
 enum BatchCommand {
-    /// Show each cell: done, partial, missing or stale.
+    /// Show each cell: done, partial, missing or stale; and, once submitted, its Slurm task:
+    /// queued, running, done or failed.
     Status { plan: PathBuf },
     /// Write OUTPUT/report/index.html (thumbnails, tables, charts) from the cells that exist.
     Report { plan: PathBuf },
+}
+
+fn warn_blocked(blocked: usize) {
+    if blocked > 0 {
+        eprintln!(
+            "{blocked} cells cannot run: their reference file is not there (see batch status)"
+        );
+    }
 }
 
 fn metric_parser() -> impl TypedValueParser<Value = Metric> {
@@ -614,7 +631,11 @@ fn batch(args: BatchArgs) -> Result<()> {
     let program = std::env::current_exe().context("finding the vmerge executable")?;
     match (args.command, args.plan) {
         (Some(BatchCommand::Status { plan }), _) => {
-            print!("{}", batch::status(&Plan::load(&plan)?))
+            let plan = Plan::load(&plan)?;
+            print!("{}", batch::status(&plan));
+            if let Some(slurm) = batch::slurm_status(&plan)? {
+                print!("{slurm}");
+            }
         }
         (Some(BatchCommand::Report { plan }), _) => {
             let index = batch::report(&Plan::load(&plan)?)?;
@@ -634,11 +655,43 @@ fn batch(args: BatchArgs) -> Result<()> {
                     eprintln!("{later} more cells wait for these; ask again once they are done");
                 }
             } else if let Some(script) = args.slurm {
-                let (tasks, later) = batch::slurm(&plan, &program, &script)?;
-                eprintln!("wrote {} ({tasks} array tasks)", script.display());
-                if later > 0 {
-                    eprintln!("{later} more cells wait for these; write the script again once they are done");
+                let (stages, blocked) = batch::slurm(&plan, &program, &script)?;
+                let tasks: Vec<String> = stages.iter().map(|n| n.to_string()).collect();
+                eprintln!(
+                    "wrote {} ({} stages of {} array tasks); submit with: bash {}",
+                    script.display(),
+                    stages.len(),
+                    tasks.join(", "),
+                    script.display()
+                );
+                warn_blocked(blocked);
+            } else if args.submit {
+                let submission = batch::submit(&plan, &program)?;
+                for (k, (job, tasks)) in submission.jobs.iter().enumerate() {
+                    println!("{job}");
+                    eprintln!("stage {}: job {job} ({tasks} cells)", k + 1);
                 }
+                if submission.jobs.is_empty() {
+                    eprintln!("nothing to submit: every cell that can run is done");
+                }
+                warn_blocked(submission.blocked);
+            } else if let Some(name) = args.cell {
+                set_threads(plan.threads)?;
+                let flag = stop_on_signal()?;
+                // Plain lines for the task's log: the action, then any warnings.
+                let done = batch::run_one(&plan, &name, args.accel, &flag, &mut |e| match e {
+                    batch::Event::Cell { name, action } => {
+                        eprintln!("{name}: {}", batch::describe_action(action))
+                    }
+                    batch::Event::Warning(w) => eprintln!("warning: {w}"),
+                    batch::Event::RunWarning(w) => eprintln!("warning: {w}"),
+                    _ => {}
+                })?;
+                // A cell stopped short must not count as done to the stages after it.
+                if !done {
+                    anyhow::bail!("{name}: stopped before its budget was spent; it continues from its snapshot when run again");
+                }
+                eprintln!("{name}: done");
             } else {
                 set_threads(plan.threads)?;
                 let flag = stop_on_signal()?;

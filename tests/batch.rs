@@ -1,6 +1,6 @@
 //! `vmerge batch`: a small plan run through GNU parallel from `--jobs`, resumed, re-run, and
-//! reported (the report opened in headless Chromium); `--slurm` scripts run by hand; bad
-//! plans refused.
+//! reported (the report opened in headless Chromium); `--slurm` drivers run by hand, stage by
+//! stage and task by task, with a stand-in sbatch; bad plans refused.
 
 mod common;
 
@@ -381,6 +381,10 @@ fn slurm_script_runs_each_task_by_hand() {
 resolution = [16, 16]
 iterations = 2
 threads = 2
+[slurm]
+partition = "short"
+account = "rendering"
+sbatch = ["--qos=low"]
 [[scene]]
 file = "{}"
 cameras = ["floor"]
@@ -394,32 +398,77 @@ radius = [0.05, 0.1]
     )
     .unwrap();
     let plan_arg = plan.to_str().unwrap();
-    let script = dir.path().join("cells.sbatch");
+    let script = dir.path().join("plan.sbatch");
+    run(&["batch", plan_arg, "--slurm", script.to_str().unwrap()]);
+    let text = std::fs::read_to_string(&script).unwrap();
+    let syntax = Command::new("bash")
+        .arg("-n")
+        .arg(&script)
+        .status()
+        .unwrap();
+    assert!(syntax.success(), "bash -n: {text}");
+    // An sbatch that keeps each stage's script and arguments and answers a job id.
+    let fake = dir.path().join("fake");
+    std::fs::create_dir(&fake).unwrap();
+    let sbatch = fake.join("sbatch");
+    std::fs::write(
+        &sbatch,
+        format!(
+            "#!/usr/bin/env bash\nn=$(ls {0}/stage*.sh 2>/dev/null | wc -l)\n\
+             cat > {0}/stage$n.sh\necho \"$*\" > {0}/args$n\necho \"$((100 + n));cluster\"\n",
+            fake.display()
+        ),
+    )
+    .unwrap();
+    Command::new("chmod")
+        .args(["+x", sbatch.to_str().unwrap()])
+        .status()
+        .unwrap();
+    let path = format!("{}:{}", fake.display(), std::env::var("PATH").unwrap());
+    let out = Command::new("bash")
+        .arg(&script)
+        .env("PATH", path)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    assert_eq!(
+        String::from_utf8_lossy(&out.stdout),
+        "stage 1: job 100 (2 cells)\nstage 2: job 101 (1 cells)\nstage 3: job 102 (4 cells)\n"
+    );
+    let args = |n: usize| std::fs::read_to_string(fake.join(format!("args{n}"))).unwrap();
+    assert_eq!(args(0), "--parsable\n");
+    assert_eq!(args(1), "--parsable --dependency=afterok:100\n");
+    assert_eq!(args(2), "--parsable --dependency=afterok:101\n");
+    // Two reference parts, their merge, four cells.
     let mut tasks_run = 0;
-    for _ in 0..4 {
-        let jobs = run(&["batch", plan_arg, "--jobs"]);
-        if jobs.is_empty() {
-            break;
+    for (stage, n) in [2, 1, 4].into_iter().enumerate() {
+        let stage_script = fake.join(format!("stage{stage}.sh"));
+        let text = std::fs::read_to_string(&stage_script).unwrap();
+        for line in [
+            format!("#SBATCH --array=0-{}\n", n - 1),
+            "#SBATCH --cpus-per-task=2\n".into(),
+            "#SBATCH --requeue\n".into(),
+            "#SBATCH --open-mode=append\n".into(),
+            "#SBATCH --partition=short\n".into(),
+            "#SBATCH --account=rendering\n".into(),
+            "#SBATCH --qos=low\n".into(),
+        ] {
+            assert!(text.contains(&line), "{line}: {text}");
         }
-        run(&["batch", plan_arg, "--slurm", script.to_str().unwrap()]);
-        let text = std::fs::read_to_string(&script).unwrap();
-        let syntax = Command::new("bash")
-            .arg("-n")
-            .arg(&script)
-            .status()
-            .unwrap();
-        assert!(syntax.success(), "bash -n: {text}");
-        let n = jobs.lines().count();
-        assert!(
-            text.contains(&format!("#SBATCH --array=0-{}\n", n - 1)),
+        // Iteration budgets give no time limit, a merge ten minutes; 16x16 pixels need
+        // little beyond the allowance.
+        assert_eq!(
+            text.contains("#SBATCH --time=0-00:10:00\n"),
+            stage == 1,
             "{text}"
         );
-        assert!(text.contains("#SBATCH --cpus-per-task=2\n"));
+        assert_eq!(text.matches("--time=").count(), usize::from(stage == 1));
+        assert!(text.contains("#SBATCH --mem=52"), "{text}");
         let tasks = text.lines().filter(|l| l.contains(") exec ")).count();
         assert_eq!(tasks, n);
         for i in 0..n {
             let status = Command::new("bash")
-                .arg(&script)
+                .arg(&stage_script)
                 .env("SLURM_ARRAY_TASK_ID", i.to_string())
                 .current_dir(dir.path())
                 .output()
@@ -428,18 +477,49 @@ radius = [0.05, 0.1]
             tasks_run += 1;
         }
         let past = Command::new("bash")
-            .arg(&script)
+            .arg(&stage_script)
             .env("SLURM_ARRAY_TASK_ID", n.to_string())
             .output()
             .unwrap();
         assert_eq!(past.status.code(), Some(2));
     }
-    // Two reference parts, their merge, four cells.
     assert_eq!(tasks_run, 7);
     let status = run(&["batch", "status", plan_arg]);
     assert!(status.contains("7 cells: 7 done"), "{status}");
     let loaded = Plan::load(&plan).unwrap();
     assert!(loaded.cells.iter().all(|c| c.output.exists()));
+    // With a submission recorded but no squeue or sacct to ask, the files alone tell.
+    std::fs::write(
+        dir.path().join("out/slurm-jobs.toml"),
+        "[[task]]\ncell = \"cornell-box.floor.reference\"\njob = \"101\"\ntask = 0\nstage = 1\n",
+    )
+    .unwrap();
+    let out = vmerge()
+        .args(["batch", "status", plan_arg])
+        .env("PATH", &fake)
+        .output()
+        .unwrap();
+    let status = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{out:?}");
+    assert!(
+        status.contains("unknown  101_0      -            cornell-box.floor.reference")
+            && status.contains("neither squeue nor sacct answered")
+            && status.contains("7 cells: 7 done"),
+        "{status}"
+    );
+    // A task run again (a requeue after its end) finds its cell done and does nothing.
+    let before = modification_times(&dir.path().join("out"));
+    let again = Command::new("bash")
+        .arg(fake.join("stage2.sh"))
+        .env("SLURM_ARRAY_TASK_ID", "0")
+        .output()
+        .unwrap();
+    assert!(again.status.success(), "{again:?}");
+    assert_eq!(modification_times(&dir.path().join("out")), before);
+    // Nothing left: the driver holds no stage.
+    run(&["batch", plan_arg, "--slurm", script.to_str().unwrap()]);
+    let text = std::fs::read_to_string(&script).unwrap();
+    assert!(!text.contains("sbatch --parsable"), "{text}");
 }
 
 /// Bad plans: exit code 2, a message naming the plan file and the entry, nothing written.
@@ -475,12 +555,41 @@ fn bad_plans_exit_2_and_name_the_entry() {
             "[[group]]\ntechniques = [\"vcm\"]\nscenes = [\"nowhere\"]\n",
             "no scene named 'nowhere'",
         ),
+        (
+            "[slurm]\npartition = \"short queue\"\n[[group]]\ntechniques = [\"vcm\"]\n",
+            "slurm: partition: 'short queue'",
+        ),
+        (
+            "[slurm]\naccount = \"\"\n[[group]]\ntechniques = [\"vcm\"]\n",
+            "slurm: account",
+        ),
+        (
+            "[slurm]\ntime_limit = \"soon\"\n[[group]]\ntechniques = [\"vcm\"]\n",
+            "slurm: time_limit",
+        ),
+        (
+            "[slurm]\nmem = \"lots\"\n[[group]]\ntechniques = [\"vcm\"]\n",
+            "slurm: mem",
+        ),
+        (
+            "[slurm]\nsbatch = [\"qos=low\"]\n[[group]]\ntechniques = [\"vcm\"]\n",
+            "slurm: sbatch: 'qos=low'",
+        ),
+        (
+            "[slurm]\nqueue = \"short\"\n[[group]]\ntechniques = [\"vcm\"]\n",
+            "slurm: unknown key 'queue'",
+        ),
     ];
-    for (i, (group, expected)) in cases.iter().enumerate() {
+    // Refused before any work, whether listed or submitted.
+    for ((i, (group, expected)), mode) in cases
+        .iter()
+        .enumerate()
+        .flat_map(|c| [(c, "--jobs"), (c, "--submit")])
+    {
         let plan = dir.path().join(format!("bad{i}.toml"));
         std::fs::write(&plan, format!("{base}{group}")).unwrap();
         let out = vmerge()
-            .args(["batch", plan.to_str().unwrap(), "--jobs"])
+            .args(["batch", plan.to_str().unwrap(), mode])
             .output()
             .unwrap();
         let stderr = String::from_utf8_lossy(&out.stderr);

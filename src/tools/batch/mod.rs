@@ -5,7 +5,8 @@
 //!
 //! - `plan.rs`: the plan file and its expansion into cells;
 //! - `cell.rs`: one cell, its state on disk (done, partial, missing, stale) and its command;
-//! - `run.rs`: status, dry runs, the in-process runner, `--jobs` lines and Slurm scripts;
+//! - `run.rs`: status, dry runs, the in-process runner and `--jobs` lines;
+//! - `slurm.rs`: the plan as Slurm array jobs chained by dependencies, submitted and followed;
 //! - `report.rs`: the static HTML report with thumbnails, tables and charts.
 //!
 //! A cell is idempotent: its file holds its options, reference and trace windows, so a cell
@@ -17,11 +18,16 @@ mod cell;
 mod plan;
 mod report;
 mod run;
+mod slurm;
 
 pub use cell::{Action, Budget, Cell, CellKind, ReferenceSource, State};
 pub use plan::{parse_duration, variant_name, Plan};
 pub use report::report;
-pub use run::{dry_run, jobs, run, slurm, status, Event, ProgressBar};
+pub use run::{describe as describe_action, dry_run, jobs, run, status, Event, ProgressBar};
+pub use slurm::{
+    class as slurm_class, run_one, slurm, slurm_states, slurm_status, stages, submit, submitted,
+    Asked, SlurmSettings, Submission, Task, RECORD,
+};
 
 use crate::film::FilmError;
 use crate::render::RenderError;
@@ -43,6 +49,14 @@ pub enum BatchError {
     },
     #[error(transparent)]
     Film(#[from] FilmError),
+    /// A cell asked for by name whose reference or parts are not done.
+    #[error("cell {cell} waits for its reference or parts, which are not done")]
+    Waits { cell: String },
+    /// Cells still queued or running from an earlier submission.
+    #[error("still queued or running from an earlier submission: {cells}; wait for them or scancel them first")]
+    Busy { cells: String },
+    #[error("{command}: {message}")]
+    Slurm { command: String, message: String },
 }
 
 impl BatchError {
@@ -56,6 +70,7 @@ impl BatchError {
                 !matches!(source, RenderError::Film(FilmError::Write { .. }))
             }
             BatchError::Film(f) => !matches!(f, FilmError::Write { .. }),
+            BatchError::Waits { .. } | BatchError::Busy { .. } | BatchError::Slurm { .. } => false,
         }
     }
 }

@@ -4,13 +4,15 @@
 //! `budget = "20m"` or `iterations = N` (a cell's budget), `seeds = [..]`, `resolution`,
 //! `traces = ["XxYxW", ..]`, and any option of [`OPTIONS`] by its field name (`min_path_length =
 //! 3`, `no_vc = true`, ...); a lower level overrides a higher one. Only at the top: `output`,
-//! `threads` (per cell), `snapshot`, `metric`. A scene: `file`, `name`, `cameras`,
+//! `threads` (per cell), `snapshot`, `metric`, and a `[slurm]` table (`partition`, `account`,
+//! `time_limit`, `mem`, `sbatch = ["--qos=low", ..]`) for submitted plans. A scene: `file`, `name`, `cameras`,
 //! `reference`. A group: `techniques`, `radius` (a number, a list or a sweep `{ from, to,
 //! steps, spacing = "log" | "linear" }`), `beta` (a number or a list), `scenes` (names; all when
 //! absent). A reference: a file (`{camera}` stands for the camera's name) or a table
 //! `{ technique = "bpt", budget | iterations, parts = K, seed, options... }`.
 
 use super::cell::{Budget, Cell, CellKind, ReferenceSource};
+use super::slurm::SlurmSettings;
 use super::BatchError;
 use crate::film::TraceWindow;
 use crate::options::{Form, RenderOptions, Technique, OPTIONS};
@@ -31,6 +33,8 @@ pub struct Plan {
     pub snapshot: Option<Duration>,
     /// The error that picks a technique's best cell in the report.
     pub metric: Metric,
+    /// How the plan's jobs are submitted to Slurm.
+    pub slurm: SlurmSettings,
     pub cells: Vec<Cell>,
     /// The scenes and cameras, in plan order, as `(scene name, camera name)`.
     pub views: Vec<(String, String)>,
@@ -47,6 +51,7 @@ const TOP_KEYS: &[&str] = &[
     "threads",
     "snapshot",
     "metric",
+    "slurm",
     "scene",
     "group",
     "budget",
@@ -78,6 +83,7 @@ const GROUP_KEYS: &[&str] = &[
     "traces",
 ];
 const REFERENCE_KEYS: &[&str] = &["technique", "budget", "iterations", "parts", "seed"];
+const SLURM_KEYS: &[&str] = &["partition", "account", "time_limit", "mem", "sbatch"];
 
 /// Options a plan gives the cells of a level, by their own keys or by expansion:
 /// `techniques`, `seeds`, `cameras`, `resolution`, `beta`, `radius`.
@@ -283,6 +289,65 @@ impl Reader<'_> {
     }
 }
 
+impl Reader<'_> {
+    /// The `[slurm]` table: names and `#SBATCH` lines that reach a shell script and Slurm's
+    /// parser, so each is held to the characters Slurm takes there.
+    fn slurm(&self, v: &toml::Value) -> Result<SlurmSettings, BatchError> {
+        let table = v
+            .as_table()
+            .ok_or_else(|| self.error("slurm", "expected a table [slurm]"))?;
+        for key in table.keys() {
+            if !SLURM_KEYS.contains(&key.as_str()) {
+                return Err(self.error("slurm", format!("unknown key '{key}'")));
+            }
+        }
+        let name = |key: &str| -> Result<Option<String>, BatchError> {
+            let Some(v) = table.get(key) else {
+                return Ok(None);
+            };
+            let entry = format!("slurm: {key}");
+            let text = self.string(&entry, v)?;
+            let allowed = |c: char| c.is_ascii_alphanumeric() || "_-.,".contains(c);
+            if text.is_empty() || !text.chars().all(allowed) {
+                return Err(self.error(
+                    &entry,
+                    format!("'{text}': expected a name of letters, digits and _ - . ,"),
+                ));
+            }
+            Ok(Some(text))
+        };
+        let mut settings = SlurmSettings {
+            partition: name("partition")?,
+            account: name("account")?,
+            ..SlurmSettings::default()
+        };
+        if let Some(v) = table.get("time_limit") {
+            let text = self.string("slurm: time_limit", v)?;
+            settings.time_limit =
+                Some(parse_duration(&text).map_err(|e| self.error("slurm: time_limit", e))?);
+        }
+        if let Some(v) = table.get("mem") {
+            let text = self.string("slurm: mem", v)?;
+            settings.mem =
+                Some(crate::memory::parse_size(&text).map_err(|e| self.error("slurm: mem", e))?);
+        }
+        if let Some(v) = table.get("sbatch") {
+            for line in self.strings("slurm: sbatch", v)? {
+                let fits =
+                    line.starts_with('-') && line.len() > 1 && !line.chars().any(char::is_control);
+                if !fits {
+                    return Err(self.error(
+                        "slurm: sbatch",
+                        format!("'{line}': expected an sbatch option such as \"--qos=low\", on one line"),
+                    ));
+                }
+                settings.sbatch.push(line);
+            }
+        }
+        Ok(settings)
+    }
+}
+
 fn round_significant(x: f64, digits: i32) -> f64 {
     let scale = 10f64.powi(digits - 1 - x.abs().log10().floor() as i32);
     (x * scale).round() / scale
@@ -432,6 +497,10 @@ impl Plan {
             }
             None => Metric::Mae,
         };
+        let slurm = match top.get("slurm") {
+            Some(v) => r.slurm(v)?,
+            None => SlurmSettings::default(),
+        };
         let root = Inherited {
             budget: None,
             seeds: vec![RenderOptions::DEFAULT.seed],
@@ -466,6 +535,7 @@ impl Plan {
             threads,
             snapshot,
             metric,
+            slurm,
             cells: Vec::new(),
             views: Vec::new(),
         };

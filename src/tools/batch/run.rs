@@ -1,19 +1,17 @@
 //! What a plan needs now, and running it: `status`, `--dry-run`, the in-process runner with its
-//! progress bar, `--jobs` command lines and `--slurm` array scripts.
+//! progress bar and `--jobs` command lines (Slurm's array jobs are in `slurm.rs`).
 
 use super::cell::{make_output, Action, Budget, Cell, CellKind, ReferenceSource, State};
 use super::{BatchError, Plan};
 use crate::accel::AccelKind;
-use crate::film::atomic_write;
 use crate::render::{self, NewRender, RenderError, RunEvent, RunWarning, StopAfter, StopFlag};
 use crate::scene::{Scene, Warning};
 use std::fmt::Write as _;
-use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::Ordering;
 use std::time::Duration;
 
-fn states(plan: &Plan) -> Vec<State> {
+pub(super) fn states(plan: &Plan) -> Vec<State> {
     plan.cells.iter().map(|c| c.state(&plan.cells)).collect()
 }
 
@@ -23,7 +21,7 @@ fn is_done(state: &State) -> bool {
 
 /// The actions that bring the plan up to date, in the order they can run: each cell's once
 /// the cells it waits for have theirs. With `now_only`, just those that can run now.
-fn planned(plan: &Plan, states: &[State], now_only: bool) -> Vec<(usize, Action)> {
+pub(super) fn planned(plan: &Plan, states: &[State], now_only: bool) -> Vec<(usize, Action)> {
     let mut done: Vec<bool> = states.iter().map(is_done).collect();
     let mut out: Vec<(usize, Action)> = Vec::new();
     loop {
@@ -100,7 +98,8 @@ pub fn status(plan: &Plan) -> String {
     text
 }
 
-fn describe(action: &Action) -> String {
+/// `render`, `continue (3 it left)` or `merge 2 parts`.
+pub fn describe(action: &Action) -> String {
     match action {
         Action::Render => "render".into(),
         Action::Continue(left) => format!("continue ({} left)", left.describe()),
@@ -144,7 +143,7 @@ pub fn dry_run(plan: &Plan) -> String {
 }
 
 /// A shell word: quoted unless it is made of safe characters alone.
-fn quote(word: &str) -> String {
+pub(super) fn quote(word: &str) -> String {
     let safe = |c: char| c.is_ascii_alphanumeric() || "_./=,:+-@%".contains(c);
     if !word.is_empty() && word.chars().all(safe) {
         word.to_string()
@@ -153,7 +152,7 @@ fn quote(word: &str) -> String {
     }
 }
 
-fn command_line(program: &Path, args: &[String]) -> String {
+pub(super) fn command_line(program: &Path, args: &[String]) -> String {
     let mut words = vec![quote(&program.to_string_lossy())];
     words.extend(args.iter().map(|a| quote(a)));
     words.join(" ")
@@ -178,7 +177,7 @@ pub fn jobs(plan: &Plan, program: &Path) -> Result<(Vec<String>, usize), BatchEr
 }
 
 /// Slurm's `D-HH:MM:SS`.
-fn slurm_time(t: Duration) -> String {
+pub(super) fn slurm_time(t: Duration) -> String {
     let s = t.as_secs();
     format!(
         "{}-{:02}:{:02}:{:02}",
@@ -187,64 +186,6 @@ fn slurm_time(t: Duration) -> String {
         s / 60 % 60,
         s % 60
     )
-}
-
-/// Writes to `file` an `sbatch --array` script with one array task per cell that can run now
-/// (the [`jobs`] lines, task i running line i) and the plan's threads as each task's cores.
-/// Returns the number of tasks and of the cells that wait for them.
-pub fn slurm(plan: &Plan, program: &Path, file: &Path) -> Result<(usize, usize), BatchError> {
-    let (lines, later) = jobs(plan, program)?;
-    let states = states(plan);
-    let now = planned(plan, &states, true);
-    let mut s = String::from("#!/usr/bin/env bash\n");
-    let _ = writeln!(
-        s,
-        "# vmerge batch {}: {} cells, one array task each.",
-        plan.file.display(),
-        lines.len()
-    );
-    if later > 0 {
-        let _ = writeln!(
-            s,
-            "# {later} more cells wait for these; write the script again once they are done."
-        );
-    }
-    let _ = writeln!(s, "#SBATCH --job-name=vmerge-batch");
-    if !lines.is_empty() {
-        let _ = writeln!(s, "#SBATCH --array=0-{}", lines.len() - 1);
-    }
-    if let Some(n) = plan.threads {
-        let _ = writeln!(s, "#SBATCH --cpus-per-task={n}");
-    }
-    // Time budgets bound a task's run: the longest, a fifth more and ten minutes for loading.
-    let times: Option<Vec<Duration>> = now
-        .iter()
-        .map(|(i, action)| match (action, plan.cells[*i].budget) {
-            (Action::Merge(_), _) => Some(Duration::ZERO),
-            (_, Budget::Time(t)) => Some(t),
-            _ => None,
-        })
-        .collect();
-    if let Some(longest) = times.and_then(|t| t.into_iter().max()) {
-        let limit = longest.mul_f64(1.2) + Duration::from_secs(600);
-        let _ = writeln!(s, "#SBATCH --time={}", slurm_time(limit));
-    }
-    let log = plan.output.join("slurm-%A_%a.log");
-    let _ = writeln!(s, "#SBATCH --output={}", quote(&log.to_string_lossy()));
-    s.push_str("set -euo pipefail\n");
-    s.push_str("case \"${SLURM_ARRAY_TASK_ID:?set by sbatch --array}\" in\n");
-    for (i, line) in lines.iter().enumerate() {
-        let _ = writeln!(s, "    {i}) exec {line} ;;");
-    }
-    s.push_str(
-        "    *) echo \"no array task $SLURM_ARRAY_TASK_ID in this script\" >&2; exit 2 ;;\n",
-    );
-    s.push_str("esac\n");
-    atomic_write(file, |f| f.write_all(s.as_bytes())).map_err(|e| BatchError::Write {
-        file: file.into(),
-        message: e.to_string(),
-    })?;
-    Ok((lines.len(), later))
 }
 
 /// What the in-process runner reports.
@@ -395,7 +336,7 @@ fn iterations<'a>(on: &'a mut dyn FnMut(&Event)) -> impl FnMut(RunEvent) + 'a {
     }
 }
 
-fn run_cell(
+pub(super) fn run_cell(
     plan: &Plan,
     cell: &Cell,
     action: &Action,
