@@ -101,29 +101,35 @@ fn run_with_parallel(plan: &Path, dir: &Path) -> usize {
         if jobs.trim().is_empty() {
             return round;
         }
-        let mut child = Command::new("parallel")
-            .args(["-j", "2", "--halt", "now,fail=1"])
-            .current_dir(dir)
-            .stdin(Stdio::piped())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        use std::io::Write;
-        child
-            .stdin
-            .take()
-            .unwrap()
-            .write_all(jobs.as_bytes())
-            .unwrap();
-        let out = child.wait_with_output().unwrap();
-        assert!(
-            out.status.success(),
-            "parallel: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        parallel(&jobs, dir);
     }
     panic!("--jobs still prints commands after 5 rounds");
+}
+
+/// Runs the command lines `jobs` through `parallel -j 2` in `dir`, stopping at the first that
+/// fails.
+fn parallel(jobs: &str, dir: &Path) {
+    let mut child = Command::new("parallel")
+        .args(["--will-cite", "-j", "2", "--halt", "now,fail=1"])
+        .current_dir(dir)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(jobs.as_bytes())
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    assert!(
+        out.status.success(),
+        "parallel: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 fn modification_times(dir: &Path) -> BTreeMap<PathBuf, SystemTime> {
@@ -659,27 +665,7 @@ no_vc = true
     );
     assert!(lines[1].contains(" --density-mis vcm+ "), "{jobs}");
     assert!(lines[2].contains(" --no-vc ") && lines[3].contains(" --no-vc "));
-    let mut child = Command::new("parallel")
-        .args(["--will-cite", "-j", "2", "--halt", "now,fail=1"])
-        .current_dir(dir.path())
-        .stdin(Stdio::piped())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    use std::io::Write;
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(jobs.as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "parallel: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    parallel(&jobs, dir.path());
     assert_eq!(run(&["batch", jobs_plan.to_str().unwrap(), "--jobs"]), "");
 
     run(&["batch", here_plan.to_str().unwrap()]);
