@@ -137,19 +137,13 @@ struct RenderArgs {
 /// value name, help, default and accepted values; the values are read by the table's reader.
 struct OptionArgs(RenderOptions);
 
-/// clap keeps `'static` text; the table's flags and defaults are built when the command is,
-/// once to parse and once more to word an error.
-fn leak(s: String) -> &'static str {
-    Box::leak(s.into_boxed_str())
-}
-
 fn option_arg(spec: &'static OptionSpec) -> Arg {
-    let mut arg = Arg::new(spec.name).long(leak(spec.name.replace('_', "-")));
+    let mut arg = Arg::new(spec.name).long(spec.name.replace('_', "-"));
     if let Some(c) = spec.short {
         arg = arg.short(c);
     }
     if !spec.help.is_empty() {
-        arg = arg.help(leak(spec.help_text()));
+        arg = arg.help(spec.help_text());
     }
     match spec.form {
         Form::Switch => arg.action(ArgAction::SetTrue),
@@ -159,7 +153,7 @@ fn option_arg(spec: &'static OptionSpec) -> Arg {
         } => {
             arg = arg.value_name(value_name).action(ArgAction::Set);
             if let Some(default) = spec.default_value() {
-                arg = arg.default_value(leak(default));
+                arg = arg.default_value(default);
             }
             match choices {
                 Some(choices) => arg.value_parser(PossibleValuesParser::new(
