@@ -695,6 +695,10 @@ fn check(ty: ParamType, name: &str, values: Vec<Value>, line: u32) -> Result<Val
                 _ => {}
             }
             let v = nums();
+            // Positions keep f64 until their own bound is checked.
+            if ty != ParamType::Point3 {
+                within_f32(&what, &v, line)?;
+            }
             if ty == ParamType::Integer {
                 if let Some(x) = v.iter().find(|x| x.fract() != 0.0 || x.abs() > 2e9) {
                     return err(line, format!("{what}: {x} is not an integer"));
@@ -707,7 +711,9 @@ fn check(ty: ParamType, name: &str, values: Vec<Value>, line: u32) -> Result<Val
                 Ok(Values::Strs(strs(values)))
             } else if all_nums {
                 multiple(2)?;
-                Ok(Values::Nums(nums()))
+                let v = nums();
+                within_f32(&what, &v, line)?;
+                Ok(Values::Nums(v))
             } else {
                 err(
                     line,
@@ -733,6 +739,17 @@ fn check(ty: ParamType, name: &str, values: Vec<Value>, line: u32) -> Result<Val
             }
             Ok(Values::Strs(strs(values)))
         }
+    }
+}
+
+/// Refuses a number that would become infinite as the f32 it is stored as.
+fn within_f32(what: &str, values: &[f64], line: u32) -> Result<(), ParseError> {
+    match values.iter().find(|x| x.abs() > f64::from(f32::MAX)) {
+        Some(x) => err(
+            line,
+            format!("{what}: {x:e} is beyond the range of 32-bit floats (3.4e38)"),
+        ),
+        None => Ok(()),
     }
 }
 
@@ -782,6 +799,11 @@ mod tests {
         assert_eq!(line("Shape \"x\" \"float radius\" [ 1\n2\n"), 1);
         assert_eq!(line("Translate 1 2\nWorldBegin"), 2);
         assert_eq!(line("Shape \"x\" \"float radius\" 1 \"float radius\" 2"), 1);
+        // Numbers that are finite as f64 but not as the f32 they are stored as.
+        assert_eq!(line("Shape \"x\"\n \"float radius\" 1e39"), 2);
+        assert_eq!(line("Shape \"x\" \"rgb L\" [ 1 1 -1e39 ]"), 1);
+        assert_eq!(line("Shape \"x\" \"spectrum L\" [ 400 1e300 ]"), 1);
+        assert!(parse_all("Shape \"x\" \"point3 P\" [ 0 0 1e39 ]").is_ok());
         // Type checks at lookup: a float wanted, an integer given.
         let ds = parse_all("Shape \"sphere\" \"integer radius\" 1").unwrap();
         assert!(ds[0].params.float("radius", 1.0).is_err());
