@@ -395,6 +395,63 @@ fn a_stalled_client_does_not_delay_the_exit() {
     drop(stalled);
 }
 
+/// Clients that ask for images and never read the answers block every worker in a socket
+/// write; each write gives up after the server's write timeout (5 s), so the page answers
+/// others again instead of staying blocked for as long as the clients stay connected.
+#[test]
+fn stalled_clients_free_their_workers() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("render.exr");
+    let served = Served::start(&[
+        "render".as_ref(),
+        scene("cornell-box").as_os_str(),
+        "--time".as_ref(),
+        "30s".as_ref(),
+        "--resolution".as_ref(),
+        "64x64".as_ref(),
+        "--no-png".as_ref(),
+        "-o".as_ref(),
+        out.as_os_str(),
+        "--preview=127.0.0.1:0".as_ref(),
+    ]);
+    let address = served.address;
+    let local = address.to_string();
+    let deadline = Instant::now() + Duration::from_secs(3);
+    while request(address, "GET", "/image/0", &local) != Some(200) {
+        assert!(Instant::now() < deadline, "no image after 3 s");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    // One stalled connection per worker (4), each with 20 MB of answers pipelined.
+    let one = format!("GET /image/0 HTTP/1.1\r\nHost: {local}\r\n\r\n");
+    let stalled: Vec<TcpStream> = (0..4)
+        .map(|_| {
+            let mut s = TcpStream::connect(address).unwrap();
+            s.write_all(one.repeat(400).as_bytes()).unwrap();
+            s
+        })
+        .collect();
+    // Long enough for every worker to be blocked with its socket's buffers full.
+    std::thread::sleep(Duration::from_secs(1));
+    let asked = Instant::now();
+    let mut stream = TcpStream::connect(address).unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(20)))
+        .unwrap();
+    write!(stream, "GET /state HTTP/1.0\r\nHost: {local}\r\n\r\n").unwrap();
+    let mut answer = String::new();
+    let read = BufReader::new(stream).read_line(&mut answer);
+    let waited = asked.elapsed();
+    assert!(
+        read.is_ok() && answer.contains(" 200 "),
+        "no answer in {waited:?} while clients stall: {answer:?}"
+    );
+    assert!(
+        waited < Duration::from_secs(8),
+        "answered only after {waited:?}"
+    );
+    drop(stalled);
+}
+
 /// In the library: the server is gone once the render's preview is dropped, while the process
 /// lives on.
 #[test]
