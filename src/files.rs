@@ -456,4 +456,32 @@ mod tests {
         assert!(check_output(&dir.path().join("out.exr"), &[input]).is_ok());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
     }
+
+    #[test]
+    fn outputs_lock_once_per_process_and_refuse_another_holder() {
+        let dir = tempfile::tempdir().unwrap();
+        let output = dir.path().join("out.exr");
+        let sidecar = dir.path().join(".out.exr.lock");
+        // A lock file left by a process that ended locks nothing.
+        std::fs::write(&sidecar, "999999999").unwrap();
+        hold_output(&output).unwrap();
+        let first = lock_output(&output).unwrap();
+        let second = lock_output(&dir.path().join(".").join("out.exr")).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&sidecar).unwrap(),
+            std::process::id().to_string()
+        );
+        drop(first);
+        assert!(sidecar.exists(), "released while still in use");
+        drop(second);
+        assert!(!sidecar.exists());
+
+        // Another holder: a lock on a description of its own, as another process has.
+        let other = File::create(&sidecar).unwrap();
+        other.lock().unwrap();
+        write!(&other, "4242").unwrap();
+        let err = lock_output(&output).unwrap_err();
+        assert!(err.message.contains("pid 4242"), "{err}");
+        assert!(err.to_string().starts_with(&show(&output)), "{err}");
+    }
 }

@@ -395,20 +395,22 @@ fn a_stalled_client_does_not_delay_the_exit() {
     drop(stalled);
 }
 
-/// Clients that ask for images and never read the answers block every worker in a socket
-/// write; each write gives up after the server's write timeout (5 s), so the page answers
-/// others again instead of staying blocked for as long as the clients stay connected.
+/// Clients that ask for an image each and never read the answer block every worker in a
+/// socket write; each write gives up after the server's write timeout (5 s), so the page
+/// answers others again instead of staying blocked for as long as the clients stay connected.
 #[test]
 fn stalled_clients_free_their_workers() {
+    use socket2::{Domain, Socket, Type};
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("render.exr");
+    // 1024x1024: a 12 MiB image, more than a socket's send buffer can hold (4 MiB at most).
     let served = Served::start(&[
         "render".as_ref(),
         scene("cornell-box").as_os_str(),
         "--time".as_ref(),
-        "30s".as_ref(),
+        "40s".as_ref(),
         "--resolution".as_ref(),
-        "64x64".as_ref(),
+        "1024x1024".as_ref(),
         "--no-png".as_ref(),
         "-o".as_ref(),
         out.as_os_str(),
@@ -416,18 +418,21 @@ fn stalled_clients_free_their_workers() {
     ]);
     let address = served.address;
     let local = address.to_string();
-    let deadline = Instant::now() + Duration::from_secs(3);
+    let deadline = Instant::now() + Duration::from_secs(20);
     while request(address, "GET", "/image/0", &local) != Some(200) {
-        assert!(Instant::now() < deadline, "no image after 3 s");
-        std::thread::sleep(Duration::from_millis(50));
+        assert!(Instant::now() < deadline, "no image after 20 s");
+        std::thread::sleep(Duration::from_millis(100));
     }
-    // One stalled connection per worker (4), each with 20 MB of answers pipelined.
-    let one = format!("GET /image/0 HTTP/1.1\r\nHost: {local}\r\n\r\n");
+    // One stalled client per worker (4), each with a small receive buffer so that the image
+    // cannot all sit in buffers.
     let stalled: Vec<TcpStream> = (0..4)
         .map(|_| {
-            let mut s = TcpStream::connect(address).unwrap();
-            s.write_all(one.repeat(400).as_bytes()).unwrap();
-            s
+            let socket = Socket::new(Domain::for_address(address), Type::STREAM, None).unwrap();
+            socket.set_recv_buffer_size(8192).unwrap();
+            socket.connect(&address.into()).unwrap();
+            let mut stream = TcpStream::from(socket);
+            write!(stream, "GET /image/0 HTTP/1.1\r\nHost: {local}\r\n\r\n").unwrap();
+            stream
         })
         .collect();
     // Long enough for every worker to be blocked with its socket's buffers full.
@@ -449,6 +454,7 @@ fn stalled_clients_free_their_workers() {
         waited < Duration::from_secs(8),
         "answered only after {waited:?}"
     );
+    eprintln!("answered after {waited:?} with every worker stalled");
     drop(stalled);
 }
 

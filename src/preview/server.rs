@@ -160,6 +160,11 @@ fn listen(
     // As std's listeners do on Unix: a port in TIME_WAIT from an earlier run is reusable.
     socket.set_reuse_address(true)?;
     socket.set_write_timeout(Some(WRITE_TIMEOUT))?;
+    // A timed-out write leaves the connection open, and tiny_http writes to it again as it
+    // flushes and drops its writers (a wait each); this closes it instead once the client
+    // has taken nothing for as long, so those writes fail at once.
+    #[cfg(target_os = "linux")]
+    socket.set_tcp_user_timeout(Some(WRITE_TIMEOUT))?;
     socket.bind(&address.into())?;
     socket.listen(128)?;
     tiny_http::Server::from_listener(std::net::TcpListener::from(socket), None)
