@@ -346,13 +346,6 @@ fn acquire(output: &Path, sidecar: &Path) -> Result<File, FileError> {
     ))
 }
 
-/// Holds the lock on `output` for this process without a guard, until an [`OutputLock`] on it
-/// is taken and dropped (or the process ends): a check before any work reserves the output
-/// for the job that follows.
-pub fn hold_output(output: &Path) -> Result<(), FileError> {
-    take(output, 0).map(|_| ())
-}
-
 /// An advisory lock (`flock`) on an output while it is written, so that a second process
 /// writing the same file (a `render`, `continue` or `merge`) refuses at once instead of
 /// overwriting the first one's work. Released, and its lock file removed, when the last
@@ -362,14 +355,15 @@ pub struct OutputLock {
     output: PathBuf,
 }
 
-/// Locks `output` against other processes; within this process the lock is shared.
+/// Locks `output` against other processes; within this process the lock is shared (a check
+/// before any work and the job after it hold the same lock).
 pub fn lock_output(output: &Path) -> Result<OutputLock, FileError> {
-    take(output, 1).map(|output| OutputLock { output })
+    take(output).map(|output| OutputLock { output })
 }
 
-/// Takes or shares the lock on `output`, counting `users` more guards of it; returns the key
-/// the guards name it by.
-fn take(output: &Path, users: usize) -> Result<PathBuf, FileError> {
+/// Takes or shares the lock on `output`, counting one more guard of it; returns the key the
+/// guards name it by.
+fn take(output: &Path) -> Result<PathBuf, FileError> {
     // Every spelling of the output (a link included) locks the same file.
     let key = resolved(output).unwrap_or_else(|| output.to_path_buf());
     let Some(sidecar) = sidecar(&key) else {
@@ -377,14 +371,14 @@ fn take(output: &Path, users: usize) -> Result<PathBuf, FileError> {
     };
     let mut held = held();
     if let Some(h) = held.iter_mut().find(|h| h.output == key) {
-        h.users += users;
+        h.users += 1;
     } else {
         let file = acquire(output, &sidecar)?;
         held.push(Held {
             output: key.clone(),
             sidecar,
             file,
-            users,
+            users: 1,
         });
     }
     Ok(key)
@@ -464,7 +458,6 @@ mod tests {
         let sidecar = dir.path().join(".out.exr.lock");
         // A lock file left by a process that ended locks nothing.
         std::fs::write(&sidecar, "999999999").unwrap();
-        hold_output(&output).unwrap();
         let first = lock_output(&output).unwrap();
         let second = lock_output(&dir.path().join(".").join("out.exr")).unwrap();
         assert_eq!(

@@ -383,7 +383,7 @@ fn render(args: RenderArgs) -> Result<()> {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
     // Checked again by the library; here before the scene loads, so a mistake costs nothing.
-    setup.check()?;
+    let _reserved = setup.check()?;
     let loading = std::time::Instant::now();
     let scene = setup.load_scene()?;
     print_warnings(&scene);
@@ -410,9 +410,11 @@ fn resume(args: ContinueArgs) -> Result<()> {
     vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
     let output = args.output.clone().unwrap_or_else(|| args.input.clone());
-    // Before the input is read: another writer finishing meanwhile would be overwritten.
-    vmerge::files::hold_output(&output)?;
+    // Before the input is read: another writer finishing meanwhile would be overwritten. A
+    // lock that cannot be taken is reported after the input's own error, if it has one.
+    let reserved = vmerge::files::lock_output(&output);
     let (film, metadata) = vmerge::film::exr::read_render(&args.input)?;
+    let _reserved = reserved?;
     let scene = vmerge::render::load_for_continue(&metadata, args.accel, args.force)?;
     print_warnings(&scene);
     let job = vmerge::render::continued_job(

@@ -416,9 +416,11 @@ fn check_memory(
 impl NewRender {
     /// Everything that can be checked before the scene loads: the options, trace windows only
     /// with a reference, an output that can be written and is neither the scene file nor the
-    /// reference. Locks the output for this process, so that another one writing it refuses
-    /// now rather than after the scene loads (the job takes the lock over).
-    pub fn check(&self) -> Result<(), RenderError> {
+    /// reference. Returns the output's lock, so that another process writing it refuses now
+    /// rather than after the scene loads: held while the scene loads, it is shared with the
+    /// job, and the lock file goes when the last guard does, whether the render is written or
+    /// refused.
+    pub fn check(&self) -> Result<OutputLock, RenderError> {
         self.options.validate()?;
         if !self.traces.is_empty() && self.reference.is_none() {
             return Err(OptionError::Needs {
@@ -433,8 +435,7 @@ impl NewRender {
         let mut inputs = vec![self.scene.clone()];
         inputs.extend(self.reference.clone());
         check_output(&self.output, self.png, &inputs)?;
-        crate::files::hold_output(&self.output)?;
-        Ok(())
+        Ok(crate::files::lock_output(&self.output)?)
     }
 
     pub fn load_scene(&self) -> Result<Scene, SceneError> {
@@ -450,8 +451,7 @@ impl NewRender {
 
     /// The job over `scene`, with a fresh film and the reference loaded and checked.
     pub fn job<'a>(&self, scene: &'a Scene) -> Result<RenderJob<'a>, RenderError> {
-        self.check()?;
-        let lock = crate::files::lock_output(&self.output)?;
+        let lock = self.check()?;
         let mut inputs = scene.inputs.clone();
         inputs.extend(self.reference.clone());
         check_output(&self.output, self.png, &inputs)?;
