@@ -19,7 +19,7 @@ use crate::film::TraceWindow;
 use crate::options::{Form, RenderOptions, Technique, OPTIONS};
 use crate::tools::Metric;
 use std::collections::{HashMap, HashSet};
-use std::path::{Path, PathBuf};
+use std::path::{Component, Path, PathBuf};
 use std::time::Duration;
 
 /// A plan, expanded: its cells in the order they are run (references first).
@@ -466,15 +466,23 @@ fn resolve(path: &Path) -> PathBuf {
     let mut base = absolute.as_path();
     loop {
         if let Ok(mut resolved) = std::fs::canonicalize(base) {
+            // What follows does not exist and so holds no links: `..` there is lexical.
             for part in rest.iter().rev() {
-                resolved.push(part);
+                match part {
+                    Component::ParentDir => {
+                        resolved.pop();
+                    }
+                    Component::CurDir => {}
+                    other => resolved.push(other.as_os_str()),
+                }
             }
             return resolved;
         }
-        match (base.parent(), base.file_name()) {
-            (Some(parent), Some(name)) => {
-                rest.push(name.to_os_string());
-                base = parent;
+        let mut parts = base.components();
+        match parts.next_back() {
+            Some(last) if parts.as_path() != base => {
+                rest.push(last);
+                base = parts.as_path();
             }
             _ => return absolute,
         }
