@@ -342,8 +342,10 @@ fn mutated_inputs_load_or_fail_cleanly() {
 }
 
 /// Plans as the tests and the documentation write them, over the shipped scenes (paths made
-/// absolute), and the bad-plan fixtures with their files: each a set of `(name, bytes)` of
+/// absolute; the first [`WRITTEN`]), and the bad-plan fixtures with their files: each a set of `(name, bytes)` of
 /// which `plan.toml`, or the fixture's plan, is mutated.
+const WRITTEN: usize = 3;
+
 fn plan_sources() -> Vec<(Vec<(String, Vec<u8>)>, String)> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let scenes = root.join("scenes").to_string_lossy().into_owned();
@@ -413,7 +415,7 @@ fn plan_sources() -> Vec<(Vec<(String, Vec<u8>)>, String)> {
 #[test]
 fn mutated_plans_load_or_fail_cleanly() {
     use vmerge::tools::batch::{self, Plan};
-    const INPUTS: usize = 4_000;
+    const INPUTS: usize = 15_000;
     let sources = plan_sources();
     assert!(sources.len() >= 15, "found {} plans", sources.len());
     let temp = tempfile::tempdir().unwrap();
@@ -434,7 +436,14 @@ fn mutated_plans_load_or_fail_cleanly() {
         for i in 0..INPUTS {
             let dir = temp.path().join(format!("plan-{i}"));
             std::fs::create_dir(&dir).unwrap();
-            let (files, plan_name) = &sources[rng.below(sources.len())];
+            // Half from the written plans, which load, so that mutations reach past the
+            // first check.
+            let pick = if rng.below(2) == 0 {
+                WRITTEN
+            } else {
+                sources.len()
+            };
+            let (files, plan_name) = &sources[rng.below(pick)];
             for (name, bytes) in files {
                 let bytes = if name == plan_name {
                     mutate(bytes, &mut rng)
@@ -469,7 +478,7 @@ fn mutated_plans_load_or_fail_cleanly() {
         start.elapsed().as_secs_f64()
     );
     assert!(
-        loaded > 100 && refused > 100,
+        loaded > 1000 && refused > 1000,
         "{loaded} loaded, {refused} refused"
     );
 }
