@@ -597,7 +597,7 @@ fn bad_plans_exit_2_and_name_the_entry() {
         (
             "[[group]]\ntechniques = [\"vcm\"]\nradius = { from = 0.01, to = 0.1, steps = 100 }\n\
              beta = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]\nseeds = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]\n",
-            "make 11000 more cells",
+            "make 11000 cells",
         ),
         // Found before work, not after it.
         (

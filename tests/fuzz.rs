@@ -346,7 +346,13 @@ fn mutated_inputs_load_or_fail_cleanly() {
 /// which `plan.toml`, or the fixture's plan, is mutated.
 const WRITTEN: usize = 3;
 
-fn plan_sources() -> Vec<(Vec<(String, Vec<u8>)>, String)> {
+/// A plan's files, `(name, bytes)`, and which of them is the plan.
+struct PlanSource {
+    files: Vec<(String, Vec<u8>)>,
+    plan: String,
+}
+
+fn plan_sources() -> Vec<PlanSource> {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
     let scenes = root.join("scenes").to_string_lossy().into_owned();
     let sweep = std::fs::read_to_string(root.join("docs/corners-sweep.toml"))
@@ -373,11 +379,9 @@ fn plan_sources() -> Vec<(Vec<(String, Vec<u8>)>, String)> {
     ];
     let mut sources: Vec<_> = written
         .into_iter()
-        .map(|text| {
-            (
-                vec![("plan.toml".to_string(), text.into_bytes())],
-                "plan.toml".into(),
-            )
+        .map(|text| PlanSource {
+            files: vec![("plan.toml".to_string(), text.into_bytes())],
+            plan: "plan.toml".into(),
         })
         .collect();
     let bad = root.join("tests/fixtures/bad");
@@ -405,7 +409,7 @@ fn plan_sources() -> Vec<(Vec<(String, Vec<u8>)>, String)> {
             })
             .filter(|(name, _)| !["args", "expect", "setup"].contains(&name.as_str()))
             .collect();
-        sources.push((files, plan));
+        sources.push(PlanSource { files, plan });
     }
     sources
 }
@@ -443,7 +447,10 @@ fn mutated_plans_load_or_fail_cleanly() {
             } else {
                 sources.len()
             };
-            let (files, plan_name) = &sources[rng.below(pick)];
+            let PlanSource {
+                files,
+                plan: plan_name,
+            } = &sources[rng.below(pick)];
             for (name, bytes) in files {
                 let bytes = if name == plan_name {
                     mutate(bytes, &mut rng)

@@ -665,7 +665,6 @@ impl Plan {
                         }
                     }
                     let at_group = at_scene.below(&r, &group_entry, group)?;
-                    let made = plan.cells.len() + renders.len();
                     renders.extend(plan.group_cells(
                         &r,
                         &group_entry,
@@ -673,8 +672,17 @@ impl Plan {
                         &at_group,
                         &view,
                         reference.clone(),
-                        made,
                     )?);
+                    let made = plan.cells.len() + renders.len();
+                    if made as u64 > MAX_CELLS {
+                        return Err(r.error(
+                            &group_entry,
+                            format!(
+                                "brings the plan to {made} cells, more than the {MAX_CELLS} a \
+                                 plan may have"
+                            ),
+                        ));
+                    }
                 }
             }
         }
@@ -957,7 +965,6 @@ impl Plan {
         inherited: &Inherited,
         view: &ViewSetup,
         reference: Option<ReferenceSource>,
-        made: usize,
     ) -> Result<Vec<Cell>, BatchError> {
         let techniques: Vec<Technique> = match group.get("techniques") {
             Some(v) => r
@@ -993,19 +1000,20 @@ impl Plan {
         let budget = inherited
             .budget
             .ok_or_else(|| r.error(entry, "no budget: set budget or iterations here or above"))?;
-        // Counted before any cell is made: the lists multiply.
+        // Counted before any cell is made: the lists multiply. The plan's total is checked
+        // after each group, which this bounds.
         let count = techniques
             .iter()
             .map(|t| if t.merges() { radii.len() as u64 } else { 1 })
             .sum::<u64>()
             .saturating_mul(betas.len() as u64)
             .saturating_mul(inherited.seeds.len() as u64);
-        if count.saturating_add(made as u64) > MAX_CELLS {
+        if count > MAX_CELLS {
             return Err(r.error(
                 entry,
                 format!(
-                    "techniques x radii x betas x seeds make {count} more cells after {made}: \
-                     more than the {MAX_CELLS} cells a plan may have"
+                    "techniques x radii x betas x seeds make {count} cells: more than the \
+                     {MAX_CELLS} cells a plan may have"
                 ),
             ));
         }
