@@ -744,13 +744,16 @@ impl Plan {
     /// that a cell of the plan writes is a cycle that could never finish. Paths compare
     /// resolved, so two spellings of one file are one file.
     fn check_files(&self, r: &Reader) -> Result<(), BatchError> {
-        if let Ok(meta) = std::fs::metadata(&self.output) {
-            if !meta.is_dir() {
-                return Err(r.error(
-                    "output",
-                    format!("{} is a file, not a folder", self.output.display()),
-                ));
-            }
+        // The folder, or one it would be made in, must not be a file.
+        let file = self
+            .output
+            .ancestors()
+            .find(|a| !a.as_os_str().is_empty() && std::fs::metadata(a).is_ok_and(|m| !m.is_dir()));
+        if let Some(file) = file {
+            return Err(r.error(
+                "output",
+                format!("{} is a file, not a folder", file.display()),
+            ));
         }
         let outputs = self.outputs();
         for cell in &self.cells {
