@@ -829,6 +829,28 @@ impl Plan {
         inputs
     }
 
+    /// Refuses a plan whose reference file is not there: run in-process it could never
+    /// finish, since no cell of the plan makes it (`--jobs` and Slurm list such cells as
+    /// waiting instead, for a reference made elsewhere).
+    pub fn check_references(&self) -> Result<(), BatchError> {
+        for cell in &self.cells {
+            if let Some(ReferenceSource::File(f)) = &cell.reference {
+                if !f.exists() {
+                    return Err(BatchError::Plan {
+                        file: self.file.clone(),
+                        message: format!(
+                            "[[scene]] {}: reference: {} does not exist, and no cell of the \
+                             plan makes it; render it first or give a reference table",
+                            cell.scene,
+                            f.display()
+                        ),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Checks that `file` (the `--slurm` script) neither is a folder nor lands on anything the
     /// plan reads or writes.
     pub fn check_script(&self, file: &Path) -> Result<(), BatchError> {
