@@ -1,12 +1,14 @@
 //! What vmerge reads and where it writes, checked before any work: inputs are regular files
 //! (never a FIFO, which would block, nor a device or a directory) within a size limit per
 //! kind, and an output lies in an existing, writable directory, is not a directory and is not
-//! one of the render's inputs.
+//! one of the render's inputs. An output being written is locked against other processes
+//! ([`lock_output`]).
 
 use std::borrow::Cow;
-use std::fs::File;
-use std::io::Read;
+use std::fs::{File, OpenOptions, TryLockError};
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, MutexGuard};
 use thiserror::Error;
 
 /// A file that cannot be used, and why.
@@ -260,6 +262,151 @@ pub fn check_output(output: &Path, inputs: &[PathBuf]) -> Result<(), FileError> 
     }
 }
 
+/// The locks this process holds, by resolved output path: taking one twice in a process (a
+/// render's early check, then its job) must not refuse itself, as a second `flock` on a new
+/// descriptor would.
+static HELD: Mutex<Vec<Held>> = Mutex::new(Vec::new());
+
+/// One output's lock: the locked sidecar file and how many [`OutputLock`]s use it.
+struct Held {
+    output: PathBuf,
+    sidecar: PathBuf,
+    /// Open while the lock is held: closing it releases the lock.
+    file: File,
+    users: usize,
+}
+
+fn held() -> MutexGuard<'static, Vec<Held>> {
+    // The list stays consistent whatever panicked while it was locked.
+    HELD.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+/// The file that locks `output`: `.NAME.lock` beside it. Outputs are replaced by a rename, so
+/// a lock on the output's own inode would not outlive the first write.
+fn sidecar(output: &Path) -> Option<PathBuf> {
+    let name = output.file_name()?;
+    Some(output.with_file_name(format!(".{}.lock", name.to_string_lossy())))
+}
+
+/// The process named in a held lock file; written just after the lock is taken, so an empty
+/// file is read again once.
+fn holder(file: &File) -> String {
+    for _ in 0..2 {
+        let mut text = String::new();
+        let _ = file.take(32).read_to_string(&mut text);
+        if let Ok(pid) = text.trim().parse::<u32>() {
+            return format!("pid {pid}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    "pid unknown".into()
+}
+
+/// Takes the advisory lock on `output`'s sidecar, or says which process holds it.
+fn acquire(output: &Path, sidecar: &Path) -> Result<File, FileError> {
+    use std::os::unix::fs::MetadataExt;
+    let fail = |e: std::io::Error| error(output, format!("cannot lock {}: {e}", show(sidecar)));
+    // A holder removes its lock file as it ends; a lock taken on a file unlinked meanwhile
+    // locks nothing anyone else opens, so the path must still name the locked file.
+    for _ in 0..16 {
+        let mut file = OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(sidecar)
+            .map_err(fail)?;
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(TryLockError::WouldBlock) => {
+                return Err(error(
+                    output,
+                    format!(
+                        "is being written by another vmerge process ({}, lock file {}); wait \
+                         for it to end or write elsewhere",
+                        holder(&file),
+                        show(sidecar)
+                    ),
+                ))
+            }
+            Err(TryLockError::Error(e)) => return Err(fail(e)),
+        }
+        let locked = file.metadata().map_err(fail)?;
+        let same = std::fs::metadata(sidecar)
+            .is_ok_and(|now| now.dev() == locked.dev() && now.ino() == locked.ino());
+        if same {
+            file.set_len(0).map_err(fail)?;
+            write!(file, "{}", std::process::id()).map_err(fail)?;
+            return Ok(file);
+        }
+    }
+    Err(error(
+        output,
+        format!("cannot lock {}: it keeps being replaced", show(sidecar)),
+    ))
+}
+
+/// Holds the lock on `output` for this process without a guard, until an [`OutputLock`] on it
+/// is taken and dropped (or the process ends): a check before any work reserves the output
+/// for the job that follows.
+pub fn hold_output(output: &Path) -> Result<(), FileError> {
+    take(output, 0).map(|_| ())
+}
+
+/// An advisory lock (`flock`) on an output while it is written, so that a second process
+/// writing the same file (a `render`, `continue` or `merge`) refuses at once instead of
+/// overwriting the first one's work. Released, and its lock file removed, when the last
+/// guard of the process on that output drops.
+#[derive(Debug)]
+pub struct OutputLock {
+    output: PathBuf,
+}
+
+/// Locks `output` against other processes; within this process the lock is shared.
+pub fn lock_output(output: &Path) -> Result<OutputLock, FileError> {
+    take(output, 1).map(|output| OutputLock { output })
+}
+
+/// Takes or shares the lock on `output`, counting `users` more guards of it; returns the key
+/// the guards name it by.
+fn take(output: &Path, users: usize) -> Result<PathBuf, FileError> {
+    // Every spelling of the output (a link included) locks the same file.
+    let key = resolved(output).unwrap_or_else(|| output.to_path_buf());
+    let Some(sidecar) = sidecar(&key) else {
+        return Err(error(output, "does not name a file"));
+    };
+    let mut held = held();
+    if let Some(h) = held.iter_mut().find(|h| h.output == key) {
+        h.users += users;
+    } else {
+        let file = acquire(output, &sidecar)?;
+        held.push(Held {
+            output: key.clone(),
+            sidecar,
+            file,
+            users,
+        });
+    }
+    Ok(key)
+}
+
+impl Drop for OutputLock {
+    fn drop(&mut self) {
+        let mut held = held();
+        let Some(i) = held.iter().position(|h| h.output == self.output) else {
+            return;
+        };
+        held[i].users -= 1;
+        if held[i].users == 0 {
+            let h = held.swap_remove(i);
+            // Removed while still locked, so whoever opened it meanwhile sees it gone and
+            // opens a new one; best effort: a lock file left behind only costs a name.
+            let _ = std::fs::remove_file(&h.sidecar);
+            drop(h.file);
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -308,5 +455,33 @@ mod tests {
         assert!(check_output(&dir.path().join("missing/out.exr"), &[]).is_err());
         assert!(check_output(&dir.path().join("out.exr"), &[input]).is_ok());
         assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn outputs_lock_once_per_process_and_refuse_another_holder() {
+        let dir = tempfile::tempdir().unwrap();
+        let output = dir.path().join("out.exr");
+        let sidecar = dir.path().join(".out.exr.lock");
+        // A lock file left by a process that ended locks nothing.
+        std::fs::write(&sidecar, "999999999").unwrap();
+        hold_output(&output).unwrap();
+        let first = lock_output(&output).unwrap();
+        let second = lock_output(&dir.path().join(".").join("out.exr")).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&sidecar).unwrap(),
+            std::process::id().to_string()
+        );
+        drop(first);
+        assert!(sidecar.exists(), "released while still in use");
+        drop(second);
+        assert!(!sidecar.exists());
+
+        // Another holder: a lock on a description of its own, as another process has.
+        let other = File::create(&sidecar).unwrap();
+        other.lock().unwrap();
+        write!(&other, "4242").unwrap();
+        let err = lock_output(&output).unwrap_err();
+        assert!(err.message.contains("pid 4242"), "{err}");
+        assert!(err.to_string().starts_with(&show(&output)), "{err}");
     }
 }

@@ -2,7 +2,7 @@
 
 use crate::accel::AccelKind;
 use crate::color::Rgb;
-use crate::files::FileError;
+use crate::files::{FileError, OutputLock};
 use crate::film::{exr, png, ErrorTracker, Film, FilmError, Metadata, TraceWindow};
 use crate::integrator::bpt::Bpt;
 use crate::integrator::pt::PathTracer;
@@ -153,6 +153,8 @@ pub struct RenderJob<'a> {
     pub output: PathBuf,
     pub png: bool,
     pub snapshot_every: Option<Duration>,
+    /// The output is this job's alone while it lives.
+    _lock: OutputLock,
 }
 
 /// Measures the current image against the reference, if any, and records the sample in the
@@ -414,7 +416,8 @@ fn check_memory(
 impl NewRender {
     /// Everything that can be checked before the scene loads: the options, trace windows only
     /// with a reference, an output that can be written and is neither the scene file nor the
-    /// reference.
+    /// reference. Locks the output for this process, so that another one writing it refuses
+    /// now rather than after the scene loads (the job takes the lock over).
     pub fn check(&self) -> Result<(), RenderError> {
         self.options.validate()?;
         if !self.traces.is_empty() && self.reference.is_none() {
@@ -430,6 +433,7 @@ impl NewRender {
         let mut inputs = vec![self.scene.clone()];
         inputs.extend(self.reference.clone());
         check_output(&self.output, self.png, &inputs)?;
+        crate::files::hold_output(&self.output)?;
         Ok(())
     }
 
@@ -447,6 +451,7 @@ impl NewRender {
     /// The job over `scene`, with a fresh film and the reference loaded and checked.
     pub fn job<'a>(&self, scene: &'a Scene) -> Result<RenderJob<'a>, RenderError> {
         self.check()?;
+        let lock = crate::files::lock_output(&self.output)?;
         let mut inputs = scene.inputs.clone();
         inputs.extend(self.reference.clone());
         check_output(&self.output, self.png, &inputs)?;
@@ -489,6 +494,7 @@ impl NewRender {
             output: self.output.clone(),
             png: self.png,
             snapshot_every: self.snapshot_every,
+            _lock: lock,
         })
     }
 }
@@ -534,6 +540,7 @@ pub fn continued_job(
     let mut inputs = scene.inputs.clone();
     inputs.extend(metadata.reference.as_ref().map(PathBuf::from));
     check_output(&output, png, &inputs)?;
+    let lock = crate::files::lock_output(&output)?;
     check_memory(
         scene,
         &metadata.options,
@@ -563,5 +570,6 @@ pub fn continued_job(
         output,
         png,
         snapshot_every,
+        _lock: lock,
     })
 }

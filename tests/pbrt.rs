@@ -113,3 +113,40 @@ fn pt_and_bpt_agree_on_veach_bidir() {
     let bpt = render_stats(&scene, &options(Technique::Bpt, 16), 1024);
     assert_means_agree("veach-bidir: bpt vs pt", &bpt, &pt);
 }
+
+/// A 200-character name where a directive, shape, material type or named material belongs is
+/// quoted as an excerpt (its first characters and its length), in errors and warnings alike.
+#[test]
+fn long_names_are_quoted_as_excerpts() {
+    let long = "x".repeat(200);
+    let excerpt = format!("{}... (200 bytes)", &long[..vmerge::files::SNIPPET]);
+    let cases = [
+        format!("{long} 1 2 3\nWorldBegin\nShape \"sphere\"\n"),
+        format!("WorldBegin\nShape \"{long}\"\n"),
+        format!("WorldBegin\nMaterial \"{long}\"\n"),
+        format!("WorldBegin\nNamedMaterial \"{long}\"\n"),
+    ];
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("long.pbrt");
+    for source in cases {
+        std::fs::write(&path, &source).unwrap();
+        let options = LoadOptions {
+            accel: AccelKind::Bvh,
+            lenient: false,
+            shading_normals: true,
+        };
+        let message = match scene::load_parts(&path, &options) {
+            Err(e) => e.to_string(),
+            Ok(parts) => parts
+                .warnings
+                .iter()
+                .map(|w| w.message.clone())
+                .collect::<Vec<_>>()
+                .join("\n"),
+        };
+        assert!(
+            message.contains(&excerpt) && !message.contains(&long),
+            "{source}: {message}"
+        );
+    }
+}

@@ -395,6 +395,69 @@ fn a_stalled_client_does_not_delay_the_exit() {
     drop(stalled);
 }
 
+/// Clients that ask for an image each and never read the answer block every worker in a
+/// socket write; each write gives up after the server's write timeout (5 s), so the page
+/// answers others again instead of staying blocked for as long as the clients stay connected.
+#[test]
+fn stalled_clients_free_their_workers() {
+    use socket2::{Domain, Socket, Type};
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("render.exr");
+    // 1024x1024: a 12 MiB image, more than a socket's send buffer can hold (4 MiB at most).
+    let served = Served::start(&[
+        "render".as_ref(),
+        scene("cornell-box").as_os_str(),
+        "--time".as_ref(),
+        "40s".as_ref(),
+        "--resolution".as_ref(),
+        "1024x1024".as_ref(),
+        "--no-png".as_ref(),
+        "-o".as_ref(),
+        out.as_os_str(),
+        "--preview=127.0.0.1:0".as_ref(),
+    ]);
+    let address = served.address;
+    let local = address.to_string();
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while request(address, "GET", "/image/0", &local) != Some(200) {
+        assert!(Instant::now() < deadline, "no image after 20 s");
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    // One stalled client per worker (4), each with a small receive buffer so that the image
+    // cannot all sit in buffers.
+    let stalled: Vec<TcpStream> = (0..4)
+        .map(|_| {
+            let socket = Socket::new(Domain::for_address(address), Type::STREAM, None).unwrap();
+            socket.set_recv_buffer_size(8192).unwrap();
+            socket.connect(&address.into()).unwrap();
+            let mut stream = TcpStream::from(socket);
+            write!(stream, "GET /image/0 HTTP/1.1\r\nHost: {local}\r\n\r\n").unwrap();
+            stream
+        })
+        .collect();
+    // Long enough for every worker to be blocked with its socket's buffers full.
+    std::thread::sleep(Duration::from_secs(1));
+    let asked = Instant::now();
+    let mut stream = TcpStream::connect(address).unwrap();
+    stream
+        .set_read_timeout(Some(Duration::from_secs(20)))
+        .unwrap();
+    write!(stream, "GET /state HTTP/1.0\r\nHost: {local}\r\n\r\n").unwrap();
+    let mut answer = String::new();
+    let read = BufReader::new(stream).read_line(&mut answer);
+    let waited = asked.elapsed();
+    assert!(
+        read.is_ok() && answer.contains(" 200 "),
+        "no answer in {waited:?} while clients stall: {answer:?}"
+    );
+    assert!(
+        waited < Duration::from_secs(8),
+        "answered only after {waited:?}"
+    );
+    eprintln!("answered after {waited:?} with every worker stalled");
+    drop(stalled);
+}
+
 /// In the library: the server is gone once the render's preview is dropped, while the process
 /// lives on.
 #[test]

@@ -39,6 +39,11 @@ const WORKERS: usize = 4;
 /// end of the process (which ends it).
 const DRAIN: Duration = Duration::from_millis(250);
 
+/// How long one write to a client may make no progress before the connection is dropped: a
+/// client that asked for an image and stopped reading frees its worker after this, instead of
+/// holding it (and, once all are held, the whole page) for as long as it stays connected.
+pub(crate) const WRITE_TIMEOUT: Duration = Duration::from_secs(5);
+
 /// What the page's `/state?since=F&errors=K` asks: wait for a frame newer than `F` (when
 /// given), and send the error series from sample `K` on.
 #[derive(Clone, Copy, Debug, Default)]
@@ -81,7 +86,7 @@ impl Server {
         content: Arc<dyn Content>,
     ) -> Result<Self, PreviewError> {
         let bind = |message: String| PreviewError::Bind { address, message };
-        let http = tiny_http::Server::http(address).map_err(|e| {
+        let http = listen(address).map_err(|e| {
             use std::io::ErrorKind::{AddrInUse, AddrNotAvailable, PermissionDenied};
             match e.downcast_ref::<std::io::Error>().map(|e| e.kind()) {
                 Some(AddrInUse | AddrNotAvailable | PermissionDenied) => PreviewError::Address {
@@ -154,6 +159,31 @@ impl Server {
     pub fn warning(&self) -> Option<String> {
         exposure_warning(self.address)
     }
+}
+
+/// The server on a listener of our own, made as `tiny_http::Server::http` makes it but with a
+/// send timeout: tiny_http never sets one on the connections it accepts, and Linux gives each
+/// accepted socket the listener's `SO_SNDTIMEO`.
+fn listen(
+    address: SocketAddr,
+) -> Result<tiny_http::Server, Box<dyn std::error::Error + Send + Sync>> {
+    use socket2::{Domain, Protocol, Socket, Type};
+    let socket = Socket::new(
+        Domain::for_address(address),
+        Type::STREAM,
+        Some(Protocol::TCP),
+    )?;
+    // As std's listeners do on Unix: a port in TIME_WAIT from an earlier run is reusable.
+    socket.set_reuse_address(true)?;
+    socket.set_write_timeout(Some(WRITE_TIMEOUT))?;
+    // A timed-out write leaves the connection open, and tiny_http writes to it again as it
+    // flushes and drops its writers (a wait each); this closes it instead once the client
+    // has taken nothing for as long, so those writes fail at once.
+    #[cfg(target_os = "linux")]
+    socket.set_tcp_user_timeout(Some(WRITE_TIMEOUT))?;
+    socket.bind(&address.into())?;
+    socket.listen(128)?;
+    tiny_http::Server::from_listener(std::net::TcpListener::from(socket), None)
 }
 
 fn exposure_warning(address: SocketAddr) -> Option<String> {

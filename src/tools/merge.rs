@@ -26,7 +26,8 @@ pub const MERGED_SEEDS: &str = "merged_seeds";
 ///
 /// Refuses, naming both files: renders of different scenes, resolutions, techniques or options,
 /// two inputs with the same seed (their samples would be the same ones counted twice), files
-/// that are not vmerge renders, and an empty input list.
+/// that are not vmerge renders, an empty input list, and an output another process is writing
+/// (locked until the merge is written).
 pub fn merge(out: &Path, inputs: &[PathBuf]) -> Result<(), FilmError> {
     let Some((first_path, rest)) = inputs.split_first() else {
         return Err(FilmError::Invalid {
@@ -34,10 +35,13 @@ pub fn merge(out: &Path, inputs: &[PathBuf]) -> Result<(), FilmError> {
             message: "merge needs at least one input".into(),
         });
     };
-    crate::files::check_output(out, inputs).map_err(|e| FilmError::Invalid {
+    let refused = |e: crate::files::FileError| FilmError::Invalid {
         file: e.file,
         message: e.message,
-    })?;
+    };
+    crate::files::check_output(out, inputs).map_err(refused)?;
+    // Held until the merge is written: another process writing `out` refuses meanwhile.
+    let _lock = crate::files::lock_output(out).map_err(refused)?;
     let (mut film, mut metadata) = exr::read_render(first_path)?;
     let mut seeds: Vec<(u64, &Path)> = seeds_of(&metadata, first_path)?;
     for path in rest {

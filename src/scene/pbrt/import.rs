@@ -9,7 +9,7 @@ use super::parser::{Directive, ParseError, Parser};
 use super::shapes::{Laid, ShapeRecord};
 use super::textures::{FloatTex, Tex};
 use crate::color::Rgb;
-use crate::files::{self, FileError, Kind};
+use crate::files::{self, snippet, FileError, Kind};
 use crate::light::{Light, SkyDesc};
 use crate::scene::builder::{Builder, Contents};
 use crate::scene::{CameraDesc, FovAxis, RenderDefaults, SceneError, SceneParts, Warning};
@@ -226,7 +226,10 @@ impl Importer {
         let loc = Loc { file, line: d.line };
         let name = d.name.as_str();
         match directives::find(name) {
-            None => self.warn(loc, format!("unknown directive '{name}' skipped")),
+            None => self.warn(
+                loc,
+                format!("unknown directive '{name}' skipped", name = snippet(name)),
+            ),
             Some(spec) => {
                 if spec.place == Place::World && !self.world {
                     return Err(self.at(loc, format!("{name} before WorldBegin")));
@@ -243,7 +246,12 @@ impl Importer {
             .map(|p| {
                 (
                     p.line,
-                    format!("{name}: parameter \"{} {}\" ignored", p.ty.name(), p.name),
+                    format!(
+                        "{name}: parameter \"{} {}\" ignored",
+                        p.ty.name(),
+                        snippet(&p.name),
+                        name = snippet(name)
+                    ),
                 )
             })
             .collect();

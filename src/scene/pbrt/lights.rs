@@ -4,6 +4,7 @@
 use super::import::{Importer, Loc};
 use super::parser::Directive;
 use crate::color::Rgb;
+use crate::files::snippet;
 use crate::light::{EnvMapDesc, Light, SceneBounds, SkyDesc};
 use crate::options::OptionName;
 use crate::scene::SceneError;
@@ -25,7 +26,10 @@ impl Importer {
         if d.str_arg(0) != "diffuse" {
             return Err(self.at(
                 loc,
-                format!("AreaLightSource '{}' is unknown (diffuse)", d.str_arg(0)),
+                format!(
+                    "AreaLightSource '{}' is unknown (diffuse)",
+                    snippet(d.str_arg(0))
+                ),
             ));
         }
         let l = self.spectrum(loc, &d.params, "L", Rgb::WHITE)?;
@@ -122,11 +126,20 @@ impl Importer {
                 }
             }
             other @ ("spot" | "goniometric" | "projection") => {
-                self.warn(loc, format!("LightSource '{other}' not supported; skipped"));
+                self.warn(
+                    loc,
+                    format!(
+                        "LightSource '{other}' not supported; skipped",
+                        other = snippet(other)
+                    ),
+                );
                 p.mark_all_used();
             }
             other => {
-                return Err(self.at(loc, format!("LightSource '{other}' is unknown")));
+                return Err(self.at(
+                    loc,
+                    format!("LightSource '{other}' is unknown", other = snippet(other)),
+                ));
             }
         }
         Ok(())

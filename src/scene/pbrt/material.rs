@@ -10,6 +10,7 @@ use super::parser::{Directive, ParamList, ParamType, Spectrum};
 use super::textures::Tex;
 use crate::bsdf::{EnergyFix, MaterialKind, Params};
 use crate::color::Rgb;
+use crate::files::snippet;
 use crate::scene::builder::{round3, MaterialDesc, Origin};
 use crate::scene::SceneError;
 
@@ -81,12 +82,21 @@ impl Importer {
             .ok_or_else(|| {
                 self.at(
                     loc,
-                    format!("MakeNamedMaterial '{mat_name}' has no \"string type\""),
+                    format!(
+                        "MakeNamedMaterial '{mat_name}' has no \"string type\"",
+                        mat_name = snippet(&mat_name)
+                    ),
                 )
             })?
             .to_string();
         if self.named_materials.contains_key(&mat_name) {
-            self.warn(loc, format!("MakeNamedMaterial: '{mat_name}' redefined"));
+            self.warn(
+                loc,
+                format!(
+                    "MakeNamedMaterial: '{mat_name}' redefined",
+                    mat_name = snippet(&mat_name)
+                ),
+            );
         }
         let index = self.material(loc, &ty, &mat_name, &d.params)?;
         self.named_materials.insert(mat_name, index);
@@ -110,7 +120,10 @@ impl Importer {
             }
             None => Err(self.at(
                 loc,
-                format!("NamedMaterial: no material named '{}'", d.str_arg(0)),
+                format!(
+                    "NamedMaterial: no material named '{}'",
+                    snippet(d.str_arg(0))
+                ),
             )),
         }
     }
@@ -219,7 +232,10 @@ impl Importer {
                         Some((Spectrum::Named(n), line)) => match named_spectrum(&n) {
                             Some(c) => c.average(),
                             None => {
-                                let msg = format!("unknown named spectrum '{n}'; eta 1.5");
+                                let msg = format!(
+                                    "unknown named spectrum '{n}'; eta 1.5",
+                                    n = snippet(&n)
+                                );
                                 self.warn(Loc { line, ..loc }, msg);
                                 1.5
                             }
@@ -257,11 +273,18 @@ impl Importer {
                     false => Rgb::splat(0.5),
                 };
                 p.mark_all_used();
-                notes.push(format!("'{ty}' as lambert of kd {:?}", round3(kd)));
+                notes.push(format!(
+                    "'{ty}' as lambert of kd {:?}",
+                    round3(kd),
+                    ty = snippet(ty)
+                ));
                 lambert(kd)
             }
             other => {
-                return Err(self.at(loc, format!("unknown material type '{other}'")));
+                return Err(self.at(
+                    loc,
+                    format!("unknown material type '{other}'", other = snippet(other)),
+                ));
             }
         };
         for ignored in ["displacement", "normalmap"] {
@@ -272,12 +295,19 @@ impl Importer {
         }
         let params = clamp_reflectance(&mut notes, bsdf, params);
         if !notes.is_empty() {
-            self.warn(loc, format!("material '{name}': {}", notes.join("; ")));
+            self.warn(
+                loc,
+                format!(
+                    "material '{name}': {}",
+                    notes.join("; "),
+                    name = snippet(name)
+                ),
+            );
         }
         let origin = Origin {
             file: self.files[loc.file].clone(),
             line: Some(loc.line),
-            entry: format!("material '{name}'"),
+            entry: format!("material '{name}'", name = snippet(name)),
         };
         let material = MaterialDesc::new(name, bsdf, params);
         let index = self.builder.material(&origin, material)?;
@@ -308,7 +338,8 @@ impl Importer {
                     loc,
                     format!(
                         "'{name}' from an image texture not supported; {:?} used",
-                        round3(fallback)
+                        round3(fallback),
+                        name = snippet(name)
                     ),
                 );
                 Ok(fallback)

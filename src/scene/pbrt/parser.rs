@@ -4,6 +4,7 @@
 
 use super::directives::{self, Form};
 use super::tokenizer::{Kind, LexError, Token, Tokenizer};
+use crate::files::snippet;
 use std::cell::Cell;
 
 /// A syntax or type error and the line it is on.
@@ -168,7 +169,7 @@ impl ParamList {
                 p.line,
                 format!(
                     "parameter '{}' must be of type {}, not {}",
-                    p.name,
+                    snippet(&p.name),
                     names.join(" or "),
                     p.ty.name()
                 ),
@@ -189,7 +190,7 @@ impl ParamList {
                 format!(
                     "parameter '{} {}' takes one value, got {n}",
                     p.ty.name(),
-                    p.name
+                    snippet(&p.name)
                 ),
             );
         }
@@ -260,7 +261,7 @@ impl ParamList {
                         p.line,
                         format!(
                             "parameter '{}' takes one point, got {}",
-                            p.name,
+                            snippet(&p.name),
                             v.len() / 3
                         ),
                     );
@@ -528,17 +529,27 @@ impl<'a> Parser<'a> {
             let (Some(ty), Some(name), None) = (words.next(), words.next(), words.next()) else {
                 return err(
                     decl.line,
-                    format!("parameter declaration \"{text}\" is not of the form \"type name\""),
+                    format!(
+                        "parameter declaration \"{}\" is not of the form \"type name\"",
+                        snippet(&text)
+                    ),
                 );
             };
             let Some(ty) = ParamType::parse(ty) else {
                 return err(
                     decl.line,
-                    format!("unknown parameter type '{ty}' in \"{text}\""),
+                    format!(
+                        "unknown parameter type '{}' in \"{}\"",
+                        snippet(ty),
+                        snippet(&text)
+                    ),
                 );
             };
             if list.params.iter().any(|p| p.name == name) {
-                return err(decl.line, format!("parameter '{name}' given twice"));
+                return err(
+                    decl.line,
+                    format!("parameter '{}' given twice", snippet(name)),
+                );
             }
             let values = self.values(&decl, &text)?;
             let values = check(ty, name, values, decl.line)?;
@@ -557,7 +568,10 @@ impl<'a> Parser<'a> {
     fn values(&mut self, decl: &Token, text: &str) -> Result<Vec<Value>, ParseError> {
         let first = self.tokens.next()?;
         let Some(first) = first else {
-            return err(decl.line, format!("parameter \"{text}\" has no value"));
+            return err(
+                decl.line,
+                format!("parameter \"{}\" has no value", snippet(text)),
+            );
         };
         if first.kind != Kind::Open {
             return Ok(vec![value(&first, text)?]);
@@ -570,7 +584,7 @@ impl<'a> Parser<'a> {
                 None => {
                     return err(
                         first.line,
-                        format!("parameter \"{text}\": '[' is never closed"),
+                        format!("parameter \"{}\": '[' is never closed", snippet(text)),
                     )
                 }
             }
@@ -593,7 +607,8 @@ fn value(t: &Token, decl: &str) -> Result<Value, ParseError> {
         _ => err(
             t.line,
             format!(
-                "parameter \"{decl}\": unexpected {} among its values",
+                "parameter \"{}\": unexpected {} among its values",
+                snippet(decl),
                 describe(t)
             ),
         ),
@@ -603,22 +618,25 @@ fn value(t: &Token, decl: &str) -> Result<Value, ParseError> {
 fn parse_number(t: &Token) -> Result<f64, ParseError> {
     match t.text.parse::<f64>() {
         Ok(x) if x.is_finite() => Ok(x),
-        _ => err(t.line, format!("'{}' is not a finite number", t.text)),
+        _ => err(
+            t.line,
+            format!("'{}' is not a finite number", snippet(t.text)),
+        ),
     }
 }
 
 fn describe(t: &Token) -> String {
     match t.kind {
-        Kind::Str => format!("the string \"{}\"", t.text),
+        Kind::Str => format!("the string \"{}\"", snippet(t.text)),
         Kind::Open => "'['".into(),
         Kind::Close => "']'".into(),
-        Kind::Bare => format!("'{}'", t.text),
+        Kind::Bare => format!("'{}'", snippet(t.text)),
     }
 }
 
 /// Checks the values against the declared type and arity.
 fn check(ty: ParamType, name: &str, values: Vec<Value>, line: u32) -> Result<Values, ParseError> {
-    let what = format!("parameter '{} {name}'", ty.name());
+    let what = format!("parameter '{} {}'", ty.name(), snippet(name));
     if values.is_empty() {
         return err(line, format!("{what} has no values"));
     }
@@ -677,6 +695,10 @@ fn check(ty: ParamType, name: &str, values: Vec<Value>, line: u32) -> Result<Val
                 _ => {}
             }
             let v = nums();
+            // Positions keep f64 until their own bound is checked.
+            if ty != ParamType::Point3 {
+                within_f32(&what, &v, line)?;
+            }
             if ty == ParamType::Integer {
                 if let Some(x) = v.iter().find(|x| x.fract() != 0.0 || x.abs() > 2e9) {
                     return err(line, format!("{what}: {x} is not an integer"));
@@ -689,7 +711,9 @@ fn check(ty: ParamType, name: &str, values: Vec<Value>, line: u32) -> Result<Val
                 Ok(Values::Strs(strs(values)))
             } else if all_nums {
                 multiple(2)?;
-                Ok(Values::Nums(nums()))
+                let v = nums();
+                within_f32(&what, &v, line)?;
+                Ok(Values::Nums(v))
             } else {
                 err(
                     line,
@@ -715,6 +739,17 @@ fn check(ty: ParamType, name: &str, values: Vec<Value>, line: u32) -> Result<Val
             }
             Ok(Values::Strs(strs(values)))
         }
+    }
+}
+
+/// Refuses a number that would become infinite as the f32 it is stored as.
+fn within_f32(what: &str, values: &[f64], line: u32) -> Result<(), ParseError> {
+    match values.iter().find(|x| x.abs() > f64::from(f32::MAX)) {
+        Some(x) => err(
+            line,
+            format!("{what}: {x:e} is beyond the range of 32-bit floats (3.4e38)"),
+        ),
+        None => Ok(()),
     }
 }
 
@@ -764,6 +799,11 @@ mod tests {
         assert_eq!(line("Shape \"x\" \"float radius\" [ 1\n2\n"), 1);
         assert_eq!(line("Translate 1 2\nWorldBegin"), 2);
         assert_eq!(line("Shape \"x\" \"float radius\" 1 \"float radius\" 2"), 1);
+        // Numbers that are finite as f64 but not as the f32 they are stored as.
+        assert_eq!(line("Shape \"x\"\n \"float radius\" 1e39"), 2);
+        assert_eq!(line("Shape \"x\" \"rgb L\" [ 1 1 -1e39 ]"), 1);
+        assert_eq!(line("Shape \"x\" \"spectrum L\" [ 400 1e300 ]"), 1);
+        assert!(parse_all("Shape \"x\" \"point3 P\" [ 0 0 1e39 ]").is_ok());
         // Type checks at lookup: a float wanted, an integer given.
         let ds = parse_all("Shape \"sphere\" \"integer radius\" 1").unwrap();
         assert!(ds[0].params.float("radius", 1.0).is_err());

@@ -303,6 +303,12 @@ fn read_vertices<S: Scalars>(
         if !p.iter().all(|x| x.is_finite()) {
             return Err(format!("vertex {i}: position {p:?} is not finite"));
         }
+        if normals && !nn.iter().all(|x| x.is_finite()) {
+            return Err(format!("vertex {i}: normal {nn:?} is not finite"));
+        }
+        if uvs && !uv.iter().all(|x| x.is_finite()) {
+            return Err(format!("vertex {i}: uv {uv:?} is not finite"));
+        }
         mesh.positions.push(p);
         if normals {
             mesh.normals.push(nn);
@@ -505,5 +511,22 @@ pub(crate) mod tests {
             .unwrap();
         assert_eq!(room(&body, &header.elements["vertex"]), 101 / 12);
         assert_eq!(room(&body, &header.elements["face"]), 101 / 13);
+    }
+
+    #[test]
+    fn normals_and_uvs_must_be_finite() {
+        let p = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        let n = [[0.0, 0.0, 1.0]; 3];
+        let uv = [[0.0, 0.0]; 3];
+        let faces: [&[u32]; 1] = [&[0, 1, 2]];
+        assert!(parse(&binary_ply(&p, &n, &uv, &faces)).is_ok());
+        let mut bad_n = n;
+        bad_n[1][2] = f32::NAN;
+        let err = parse(&binary_ply(&p, &bad_n, &uv, &faces)).unwrap_err();
+        assert!(err.contains("vertex 1: normal"), "{err}");
+        let mut bad_uv = uv;
+        bad_uv[2][0] = f32::INFINITY;
+        let err = parse(&binary_ply(&p, &n, &bad_uv, &faces)).unwrap_err();
+        assert!(err.contains("vertex 2: uv"), "{err}");
     }
 }

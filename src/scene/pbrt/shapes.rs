@@ -5,7 +5,7 @@ use super::import::{Importer, Loc};
 use super::parser::{Directive, ParamList, ParamType, ParseError};
 use super::ply::{self, PlyMesh};
 use crate::accel::{Geometry, Sphere};
-use crate::files::{self, FileError, Kind};
+use crate::files::{self, snippet, FileError, Kind};
 use crate::options::OptionName;
 use crate::scene::{MeshShading, SceneError, MAX_COORDINATE};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
@@ -88,11 +88,22 @@ impl Importer {
                 }
             }
             other @ ("disk" | "cylinder" | "loopsubdiv" | "curve" | "bilinearpatch") => {
-                self.warn(loc, format!("Shape '{other}' not supported; skipped"));
+                self.warn(
+                    loc,
+                    format!(
+                        "Shape '{other}' not supported; skipped",
+                        other = snippet(other)
+                    ),
+                );
                 p.mark_all_used();
                 return Ok(());
             }
-            other => return Err(self.at(loc, format!("unknown shape '{other}'"))),
+            other => {
+                return Err(self.at(
+                    loc,
+                    format!("unknown shape '{other}'", other = snippet(other)),
+                ))
+            }
         };
         if p.params.iter().any(|q| q.name == "alpha") {
             p.mark_used(&["alpha"]);

@@ -5,6 +5,7 @@
 use super::import::{Block, Importer, Loc};
 use super::parser::Directive;
 use super::shapes::ShapeRecord;
+use crate::files::snippet;
 use crate::scene::{CameraDesc, FovAxis, SceneError};
 use glam::{DMat4, DVec3};
 
@@ -141,7 +142,10 @@ impl Importer {
         match self.named_coordinates.get(d.str_arg(0)) {
             Some(&m) => self.state.ctm = m,
             None => {
-                let msg = format!("CoordSysTransform: no coordinate system '{}'", d.str_arg(0));
+                let msg = format!(
+                    "CoordSysTransform: no coordinate system '{}'",
+                    snippet(d.str_arg(0))
+                );
                 self.warn(loc, msg);
             }
         }
@@ -195,7 +199,10 @@ impl Importer {
         let Some(shapes) = self.objects.get(d.str_arg(0)) else {
             return Err(self.at(
                 loc,
-                format!("ObjectInstance: no object named '{}'", d.str_arg(0)),
+                format!(
+                    "ObjectInstance: no object named '{}'",
+                    snippet(d.str_arg(0))
+                ),
             ));
         };
         let ctm = self.state.ctm;
@@ -261,7 +268,7 @@ impl Importer {
                 loc,
                 format!(
                     "Camera '{}' is not supported (perspective only)",
-                    d.str_arg(0)
+                    snippet(d.str_arg(0))
                 ),
             ));
         }

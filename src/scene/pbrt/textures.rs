@@ -5,6 +5,7 @@ use super::import::{Importer, Loc};
 use super::material::named_spectrum;
 use super::parser::{Directive, ParamList, Spectrum, TexOr};
 use crate::color::Rgb;
+use crate::files::snippet;
 use crate::options::OptionName;
 use crate::scene::{MaterialTextures, SceneError};
 use std::collections::HashMap;
@@ -40,7 +41,11 @@ impl Importer {
             other => {
                 return Err(self.at(
                     loc,
-                    format!("Texture '{name}': type '{other}' is neither spectrum nor float"),
+                    format!(
+                        "Texture '{name}': type '{other}' is neither spectrum nor float",
+                        name = snippet(name),
+                        other = snippet(other)
+                    ),
                 ))
             }
         };
@@ -50,12 +55,18 @@ impl Importer {
                 let file = p.string("filename").map_err(&pe)?.ok_or_else(|| {
                     self.at(
                         loc,
-                        format!("Texture '{name}': imagemap without a filename"),
+                        format!(
+                            "Texture '{name}': imagemap without a filename",
+                            name = snippet(name)
+                        ),
                     )
                 })?;
                 let scale = p.float("scale", 1.0).map_err(&pe)?;
                 if p.bool("invert", false).map_err(&pe)? {
-                    self.warn(loc, format!("Texture '{name}': invert ignored"));
+                    self.warn(
+                        loc,
+                        format!("Texture '{name}': invert ignored", name = snippet(name)),
+                    );
                 }
                 p.mark_used(&["filter", "wrap", "encoding", "maxanisotropy"]);
                 let path = self.resolve(file);
@@ -70,8 +81,7 @@ impl Importer {
                         loc,
                         format!(
                             "Texture '{name}': {} is missing; its materials use their constant instead",
-                            path.display()
-                        ),
+                            path.display(), name = snippet(name)),
                     );
                     Tex::Missing
                 } else {
@@ -80,8 +90,7 @@ impl Importer {
                         format!(
                             "Texture '{name}': {} is missing (use {} to render with the material's constant)",
                             path.display(),
-                            OptionName("lenient")
-                        ),
+                            OptionName("lenient"), name = snippet(name)),
                     ));
                 }
             }
@@ -101,7 +110,9 @@ impl Importer {
                         self.warn(
                             Loc { line, ..loc },
                             format!(
-                                "Texture '{name}': scale by texture '{t}' not supported; 1 used"
+                                "Texture '{name}': scale by texture '{t}' not supported; 1 used",
+                                name = snippet(name),
+                                t = snippet(&t)
                             ),
                         );
                         1.0
@@ -124,7 +135,11 @@ impl Importer {
             other => {
                 self.warn(
                     loc,
-                    format!("Texture '{name}': class '{other}' not supported; grey 0.5 used"),
+                    format!(
+                        "Texture '{name}': class '{other}' not supported; grey 0.5 used",
+                        name = snippet(name),
+                        other = snippet(other)
+                    ),
                 );
                 p.mark_all_used();
                 if spectrum {
@@ -172,7 +187,11 @@ impl Importer {
                 None => {
                     self.warn(
                         loc,
-                        format!("'{name}': unknown named spectrum '{n}'; grey 1 used"),
+                        format!(
+                            "'{name}': unknown named spectrum '{n}'; grey 1 used",
+                            name = snippet(name),
+                            n = snippet(&n)
+                        ),
                     );
                     Rgb::WHITE
                 }
@@ -180,7 +199,10 @@ impl Importer {
             Spectrum::Blackbody(t) => {
                 self.warn(
                     loc,
-                    format!("'{name}': blackbody {t} K approximated as white"),
+                    format!(
+                        "'{name}': blackbody {t} K approximated as white",
+                        name = snippet(name)
+                    ),
                 );
                 Rgb::WHITE
             }
@@ -189,13 +211,23 @@ impl Importer {
                 let mean = values.iter().sum::<f32>() / values.len().max(1) as f32;
                 self.warn(
                     loc,
-                    format!("'{name}': sampled spectrum approximated by its mean {mean}"),
+                    format!(
+                        "'{name}': sampled spectrum approximated by its mean {mean}",
+                        name = snippet(name)
+                    ),
                 );
                 Rgb::splat(mean)
             }
         };
         if !rgb.is_finite() || rgb.min_component() < 0.0 {
-            return Err(self.at(loc, format!("'{name}' {:?} is negative", rgb.to_array())));
+            return Err(self.at(
+                loc,
+                format!(
+                    "'{name}' {:?} is negative",
+                    rgb.to_array(),
+                    name = snippet(name)
+                ),
+            ));
         }
         Ok(rgb)
     }
@@ -219,7 +251,11 @@ impl Importer {
                 Some(tex) => Ok(tex.clone()),
                 None => Err(self.at(
                     Loc { line, ..loc },
-                    format!("'{name}': no spectrum texture named '{t}'"),
+                    format!(
+                        "'{name}': no spectrum texture named '{t}'",
+                        name = snippet(name),
+                        t = snippet(&t)
+                    ),
                 )),
             },
         }
@@ -242,14 +278,20 @@ impl Importer {
                     self.warn(
                         Loc { line, ..loc },
                         format!(
-                            "'{name}': float image texture '{t}' not supported; {default} used"
+                            "'{name}': float image texture '{t}' not supported; {default} used",
+                            name = snippet(name),
+                            t = snippet(&t)
                         ),
                     );
                     Ok(Some(default))
                 }
                 None => Err(self.at(
                     Loc { line, ..loc },
-                    format!("'{name}': no float texture named '{t}'"),
+                    format!(
+                        "'{name}': no float texture named '{t}'",
+                        name = snippet(name),
+                        t = snippet(&t)
+                    ),
                 )),
             },
         }
