@@ -409,10 +409,12 @@ fn print_warnings(scene: &vmerge::scene::Scene) {
 fn resume(args: ContinueArgs) -> Result<()> {
     vmerge::options::validate_run(args.iterations, args.time, args.snapshot)?;
     set_threads(args.threads)?;
+    let output = args.output.clone().unwrap_or_else(|| args.input.clone());
+    // Before the input is read: another writer finishing meanwhile would be overwritten.
+    vmerge::files::hold_output(&output)?;
     let (film, metadata) = vmerge::film::exr::read_render(&args.input)?;
     let scene = vmerge::render::load_for_continue(&metadata, args.accel, args.force)?;
     print_warnings(&scene);
-    let output = args.output.unwrap_or(args.input);
     let job = vmerge::render::continued_job(
         &scene,
         film,
