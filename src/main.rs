@@ -443,7 +443,9 @@ use vmerge::render::{RenderJob, StopAfter};
 
 fn view(files: &[PathBuf], address: SocketAddr) -> Result<()> {
     let viewer = vmerge::preview::Viewer::load(files)?;
-    let server = viewer.serve(address)?;
+    let server = viewer
+        .serve(address)
+        .with_context(|| format!("--address {address}"))?;
     if let Some(w) = server.warning() {
         eprintln!("warning: {w}");
     }
@@ -481,7 +483,10 @@ fn run_job(mut job: RenderJob, stop: StopAfter, preview: Option<SocketAddr>) -> 
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     let mut preview = preview
-        .map(|address| vmerge::preview::LivePreview::start(address, &job, stop))
+        .map(|address| {
+            vmerge::preview::LivePreview::start(address, &job, stop)
+                .with_context(|| format!("--preview {address}"))
+        })
         .transpose()?;
     if let Some(p) = &preview {
         eprintln!("preview at http://{}/", p.address());
@@ -559,6 +564,9 @@ fn is_input_error(e: &anyhow::Error) -> bool {
             }
         } else if let Some(b) = cause.downcast_ref::<vmerge::tools::batch::BatchError>() {
             b.is_input()
+        } else if let Some(p) = cause.downcast_ref::<vmerge::preview::PreviewError>() {
+            // An address the user named that cannot be had; other failures are the system's.
+            matches!(p, vmerge::preview::PreviewError::Address { .. })
         } else {
             cause.downcast_ref::<vmerge::scene::SceneError>().is_some()
                 || cause.downcast_ref::<OptionError>().is_some()

@@ -585,6 +585,30 @@ fn bad_plans_exit_2_and_name_the_entry() {
             "[slurm]\nqueue = \"short\"\n[[group]]\ntechniques = [\"vcm\"]\n",
             "slurm: unknown key 'queue'",
         ),
+        // Bounded before anything is allocated.
+        (
+            "[[group]]\ntechniques = [\"vcm\"]\nradius = { from = 0.01, to = 0.1, steps = 4000000000 }\n",
+            "[[group]] 1: radius: steps = 4000000000",
+        ),
+        (
+            "reference = { iterations = 4, parts = 1000000 }\n[[group]]\ntechniques = [\"vcm\"]\n",
+            "reference: parts: 1000000 parts",
+        ),
+        (
+            "[[group]]\ntechniques = [\"vcm\"]\nradius = { from = 0.01, to = 0.1, steps = 100 }\n\
+             beta = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]\nseeds = [1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11]\n",
+            "make 11000 cells",
+        ),
+        // Found before work, not after it.
+        (
+            "reference = \"out/cornell-box.cam0.vcm.exr\"\n[[group]]\ntechniques = [\"vcm\"]\n",
+            "is what cell cornell-box.cam0.vcm of this plan writes",
+        ),
+        (
+            "reference = { iterations = 4 }\n[[group]]\ntechniques = [\"vcm\"]\n\
+             resolution = [8, 8]\ntraces = [\"12x0x2\"]\n",
+            "the window at (12, 0) lies outside its 8x8 image",
+        ),
     ];
     // Refused before any work, whether listed or submitted.
     for ((i, (group, expected)), mode) in cases

@@ -434,3 +434,30 @@ fn options_written_as_arguments_come_back_from_the_image() {
         assert_eq!(recorded, options, "{args:?}");
     }
 }
+
+/// `--preview` at an address another process holds is the user's mistake: exit 2 before any
+/// work, a message naming the flag, and no image written.
+#[test]
+fn preview_address_in_use_exits_2_and_names_the_flag() {
+    let taken = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let address = taken.local_addr().unwrap().to_string();
+    let fixture =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/bad/plan-trace-outside");
+    let temp = tempfile::tempdir().unwrap();
+    for file in ["scene.toml", "room.obj", "room.mtl"] {
+        std::fs::copy(fixture.join(file), temp.path().join(file)).unwrap();
+    }
+    let result = vmerge()
+        .args(["render", "-n", "1", "--resolution", "8x8", "--accel", "bvh"])
+        .args(["--preview", &address, "-o", "out.exr", "scene.toml"])
+        .current_dir(temp.path())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&result.stderr);
+    assert_eq!(result.status.code(), Some(2), "{stderr}");
+    assert!(stderr.contains(&format!("--preview {address}")), "{stderr}");
+    assert!(stderr.len() < 2000, "{stderr}");
+    assert!(!temp.path().join("out.exr").exists(), "{stderr}");
+    assert!(!temp.path().join("out.png").exists(), "{stderr}");
+    drop(taken);
+}

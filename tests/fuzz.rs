@@ -789,3 +789,152 @@ fn mutated_pbrt_and_ply_inputs_load_or_fail_cleanly() {
         "{loaded} loaded, {refused} refused"
     );
 }
+
+/// How many of [`plan_sources`] are written plans, which load (the rest are fixtures).
+const WRITTEN: usize = 3;
+
+/// A plan's files, `(name, bytes)`, and which of them is the plan.
+struct PlanSource {
+    files: Vec<(String, Vec<u8>)>,
+    plan: String,
+}
+
+/// Plans as the tests and the documentation write them, over the shipped scenes (paths made
+/// absolute), then the bad-plan fixtures with their files; the plan of each is mutated.
+fn plan_sources() -> Vec<PlanSource> {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let scenes = root.join("scenes").to_string_lossy().into_owned();
+    let sweep = std::fs::read_to_string(root.join("docs/corners-sweep.toml"))
+        .unwrap()
+        .replace("../scenes", &scenes)
+        .replace("../target/batch/corners-sweep", "out");
+    let written = [
+        sweep,
+        format!(
+            "output = \"results\"\nresolution = [32, 32]\niterations = 4\ntraces = [\"8x8x4\"]\n\
+             [[scene]]\nfile = \"{scenes}/cornell-box/scene.toml\"\ncameras = [\"front\"]\n\
+             reference = {{ technique = \"bpt\", iterations = 64, parts = 2 }}\n\
+             [[group]]\ntechniques = [\"vcm\", \"upg\", \"upg-camera\"]\nradius = [0.02, 0.05, 0.1]\n"
+        ),
+        format!(
+            "output = \"out\"\nresolution = [16, 16]\niterations = 2\nthreads = 2\n\
+             [slurm]\npartition = \"short\"\naccount = \"rendering\"\nsbatch = [\"--qos=low\"]\n\
+             [[scene]]\nfile = \"{scenes}/cornell-box/scene.toml\"\nname = \"box\"\n\
+             reference = {{ iterations = 16, parts = 2 }}\n\
+             [[group]]\ntechniques = [\"vcm\", \"upg\"]\nradius = [0.05, 0.1]\nbeta = [1, 2]\n\
+             seeds = [1, 2]\nmin_path_length = 2\n[[group]]\ntechniques = [\"bpt\"]\n\
+             scenes = [\"box\"]\nbudget = \"2s\"\n"
+        ),
+    ];
+    let mut sources: Vec<_> = written
+        .into_iter()
+        .map(|text| PlanSource {
+            files: vec![("plan.toml".to_string(), text.into_bytes())],
+            plan: "plan.toml".into(),
+        })
+        .collect();
+    let bad = root.join("tests/fixtures/bad");
+    let mut cases: Vec<_> = std::fs::read_dir(&bad)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.file_name()
+                .unwrap()
+                .to_string_lossy()
+                .starts_with("plan-")
+        })
+        .collect();
+    cases.sort();
+    for case in cases {
+        let args = std::fs::read_to_string(case.join("args")).unwrap();
+        let plan = args.lines().last().unwrap().to_string();
+        let files = std::fs::read_dir(&case)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.is_file())
+            .map(|p| {
+                let name = p.file_name().unwrap().to_string_lossy().into_owned();
+                (name, std::fs::read(&p).unwrap())
+            })
+            .filter(|(name, _)| !["args", "expect", "setup"].contains(&name.as_str()))
+            .collect();
+        sources.push(PlanSource { files, plan });
+    }
+    sources
+}
+
+/// Mutated plans load or are refused with a message naming the plan, never panic, abort or
+/// hang; a plan that loads also gives its status and dry run, which must write nothing.
+#[test]
+fn mutated_plans_load_or_fail_cleanly() {
+    use vmerge::tools::batch::{self, Plan};
+    const INPUTS: usize = 15_000;
+    let sources = plan_sources();
+    assert!(sources.len() >= 15, "found {} plans", sources.len());
+    let temp = tempfile::tempdir().unwrap();
+    let finished = AtomicBool::new(false);
+    let start = Instant::now();
+    let (mut loaded, mut refused) = (0usize, 0usize);
+    std::thread::scope(|scope| {
+        scope.spawn(|| {
+            while !finished.load(Ordering::Relaxed) {
+                if start.elapsed() > Duration::from_secs(120) {
+                    eprintln!("fuzz: no progress after 120 s; a plan hangs");
+                    std::process::exit(1);
+                }
+                std::thread::sleep(Duration::from_millis(100));
+            }
+        });
+        let mut rng = Rng(0x91a2_0000);
+        for i in 0..INPUTS {
+            let dir = temp.path().join(format!("plan-{i}"));
+            std::fs::create_dir(&dir).unwrap();
+            // Half from the written plans, which load, so that mutations reach past the
+            // first check.
+            let pick = if rng.below(2) == 0 {
+                WRITTEN
+            } else {
+                sources.len()
+            };
+            let PlanSource {
+                files,
+                plan: plan_name,
+            } = &sources[rng.below(pick)];
+            for (name, bytes) in files {
+                let bytes = if name == plan_name {
+                    mutate(bytes, &mut rng)
+                } else {
+                    bytes.clone()
+                };
+                std::fs::write(dir.join(name), bytes).unwrap();
+            }
+            let plan_file = dir.join(plan_name);
+            let before = std::fs::read_dir(&dir).unwrap().count();
+            let result = catch_unwind(|| {
+                Plan::load(&plan_file).map(|plan| {
+                    batch::status(&plan);
+                    batch::dry_run(&plan);
+                })
+            });
+            match result {
+                Ok(Ok(())) => loaded += 1,
+                Ok(Err(e)) if e.to_string().contains(plan_name.as_str()) => refused += 1,
+                Ok(Err(e)) => panic!("{}: the message does not name it: {e}", plan_file.display()),
+                Err(_) => panic!("{}: panicked", plan_file.display()),
+            }
+            let after = std::fs::read_dir(&dir).unwrap().count();
+            assert_eq!(before, after, "{}: wrote files", plan_file.display());
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+        finished.store(true, Ordering::Relaxed);
+    });
+    eprintln!(
+        "fuzz: {} plans in {:.1} s: {loaded} loaded, {refused} refused cleanly",
+        loaded + refused,
+        start.elapsed().as_secs_f64()
+    );
+    assert!(
+        loaded > 1000 && refused > 1000,
+        "{loaded} loaded, {refused} refused"
+    );
+}

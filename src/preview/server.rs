@@ -18,6 +18,13 @@ pub enum PreviewError {
         address: SocketAddr,
         message: String,
     },
+    /// An address the user gave that cannot be bound: taken, not this machine's, or a port
+    /// only root may use.
+    #[error("cannot serve the preview at {address}: {message}")]
+    Address {
+        address: SocketAddr,
+        message: String,
+    },
 }
 
 /// The page: markup, style and script in one file, so nothing is fetched from elsewhere.
@@ -79,7 +86,16 @@ impl Server {
         content: Arc<dyn Content>,
     ) -> Result<Self, PreviewError> {
         let bind = |message: String| PreviewError::Bind { address, message };
-        let http = listen(address).map_err(|e| bind(e.to_string()))?;
+        let http = listen(address).map_err(|e| {
+            use std::io::ErrorKind::{AddrInUse, AddrNotAvailable, PermissionDenied};
+            match e.downcast_ref::<std::io::Error>().map(|e| e.kind()) {
+                Some(AddrInUse | AddrNotAvailable | PermissionDenied) => PreviewError::Address {
+                    address,
+                    message: e.to_string(),
+                },
+                _ => bind(e.to_string()),
+            }
+        })?;
         let bound = http
             .server_addr()
             .to_ip()

@@ -57,6 +57,9 @@ pub enum BatchError {
     Busy { cells: String },
     #[error("{command}: {message}")]
     Slurm { command: String, message: String },
+    /// A command-line flag's value that cannot be used, refused before any work.
+    #[error("{flag} {message}")]
+    Flag { flag: &'static str, message: String },
 }
 
 impl BatchError {
@@ -64,7 +67,7 @@ impl BatchError {
     /// system.
     pub fn is_input(&self) -> bool {
         match self {
-            BatchError::Plan { .. } => true,
+            BatchError::Plan { .. } | BatchError::Flag { .. } => true,
             BatchError::Write { .. } => false,
             BatchError::Render { source, .. } => {
                 !matches!(source, RenderError::Film(FilmError::Write { .. }))

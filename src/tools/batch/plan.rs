@@ -14,10 +14,12 @@
 use super::cell::{Budget, Cell, CellKind, ReferenceSource};
 use super::slurm::SlurmSettings;
 use super::BatchError;
+use crate::files::Kind;
 use crate::film::TraceWindow;
 use crate::options::{Form, RenderOptions, Technique, OPTIONS};
 use crate::tools::Metric;
-use std::path::{Path, PathBuf};
+use std::collections::{HashMap, HashSet};
+use std::path::{Component, Path, PathBuf};
 use std::time::Duration;
 
 /// A plan, expanded: its cells in the order they are run (references first).
@@ -44,6 +46,13 @@ pub struct Plan {
 /// cell and its reference with one seed would share their eye sub-paths' random numbers and
 /// the measured error would come out too low.
 pub const REFERENCE_SEED: u64 = 1 << 32;
+
+/// The most cells a plan may expand to, checked before any is made. A cell is a render of
+/// seconds to hours, so 10,000 is far beyond any study (000 ch. 4 runs a few hundred) and
+/// keeps the passes over all cells that are quadratic in their number (expansion, status,
+/// planning) well under a second; without it a sweep of `steps = 1000000000` asks for more
+/// memory than there is before anything runs.
+pub const MAX_CELLS: u64 = 10_000;
 
 /// Keys that are not options, by the level that takes them.
 const TOP_KEYS: &[&str] = &[
@@ -258,6 +267,12 @@ impl Reader<'_> {
         let from = self.number(entry, get("from")?)?;
         let to = self.number(entry, get("to")?)?;
         let steps = self.count(entry, get("steps")?)?;
+        if steps > MAX_CELLS {
+            return Err(self.error(
+                entry,
+                format!("steps = {steps}: more than the {MAX_CELLS} cells a plan may have"),
+            ));
+        }
         let spacing = match sweep.get("spacing") {
             Some(s) => self.string(entry, s)?,
             None => "log".into(),
@@ -443,6 +458,66 @@ fn scene_name(file: &Path) -> String {
     }
 }
 
+/// `path` absolute, with its longest existing ancestor resolved (links followed) and the rest
+/// appended, so that two spellings of one file compare equal whether or not it exists yet.
+fn resolve(path: &Path) -> PathBuf {
+    let absolute = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut rest = Vec::new();
+    let mut base = absolute.as_path();
+    loop {
+        if let Ok(mut resolved) = std::fs::canonicalize(base) {
+            // What follows does not exist and so holds no links: `..` there is lexical.
+            for part in rest.iter().rev() {
+                match part {
+                    Component::ParentDir => {
+                        resolved.pop();
+                    }
+                    Component::CurDir => {}
+                    other => resolved.push(other.as_os_str()),
+                }
+            }
+            return resolved;
+        }
+        let mut parts = base.components();
+        match parts.next_back() {
+            Some(last) if parts.as_path() != base => {
+                rest.push(last);
+                base = parts.as_path();
+            }
+            _ => return absolute,
+        }
+    }
+}
+
+/// The existing files a TOML scene file names by a string value (meshes, textures, sky
+/// images), relative to its folder. A scene that cannot be read names none here; loading it
+/// reports why.
+fn named_files(scene: &Path) -> Vec<PathBuf> {
+    fn walk(value: &toml::Value, dir: &Path, out: &mut Vec<PathBuf>) {
+        match value {
+            toml::Value::String(s) if !s.is_empty() => {
+                let path = dir.join(s);
+                if path.is_file() {
+                    out.push(path);
+                }
+            }
+            toml::Value::Array(items) => items.iter().for_each(|v| walk(v, dir, out)),
+            toml::Value::Table(t) => t.values().for_each(|v| walk(v, dir, out)),
+            _ => {}
+        }
+    }
+    let Ok(text) = crate::files::read_text(scene, Kind::Scene) else {
+        return Vec::new();
+    };
+    let Ok(table) = text.parse::<toml::Table>() else {
+        return Vec::new();
+    };
+    let dir = scene.parent().unwrap_or(Path::new(""));
+    let mut out = Vec::new();
+    table.values().for_each(|v| walk(v, dir, &mut out));
+    out
+}
+
 /// Characters a name part may keep; everything else becomes `-`, so names stay file names.
 fn clean(part: &str) -> String {
     part.chars()
@@ -460,9 +535,10 @@ impl Plan {
     /// Reads and expands `file`. Every problem names the file and the entry.
     pub fn load(file: &Path) -> Result<Plan, BatchError> {
         let r = Reader { file };
-        let text = std::fs::read_to_string(file).map_err(|e| BatchError::Plan {
+        // A plan is read like a scene file: a regular file (never a FIFO) within its limit.
+        let text = crate::files::read_text(file, Kind::Scene).map_err(|e| BatchError::Plan {
             file: file.into(),
-            message: format!("cannot read: {e}"),
+            message: e.message,
         })?;
         let top: toml::Table = text
             .parse()
@@ -597,6 +673,16 @@ impl Plan {
                         &view,
                         reference.clone(),
                     )?);
+                    let made = plan.cells.len() + renders.len();
+                    if made as u64 > MAX_CELLS {
+                        return Err(r.error(
+                            &group_entry,
+                            format!(
+                                "brings the plan to {made} cells, more than the {MAX_CELLS} a \
+                                 plan may have"
+                            ),
+                        ));
+                    }
                 }
             }
         }
@@ -622,9 +708,167 @@ impl Plan {
             }
         }
         // Entries that make the same cell twice (the same options) run it once.
-        let mut seen = std::collections::HashSet::new();
+        let mut seen = HashSet::new();
         plan.cells.retain(|c| seen.insert(c.name.clone()));
+        plan.check_traces(&r)?;
+        plan.check_files(&r)?;
         Ok(plan)
+    }
+
+    /// Trace windows of a cell whose resolution the plan gives must touch the image: one
+    /// wholly outside would be found only once the cell had rendered.
+    fn check_traces(&self, r: &Reader) -> Result<(), BatchError> {
+        for cell in &self.cells {
+            let Some([width, height]) = cell.options.resolution else {
+                continue;
+            };
+            for t in &cell.traces {
+                let (x0, y0, x1, y1) = t.rect(width, height);
+                if x0 >= x1 || y0 >= y1 {
+                    return Err(r.error(
+                        &format!("traces of cell {}", cell.name),
+                        format!(
+                            "the window at ({}, {}) lies outside its {width}x{height} image",
+                            t.x, t.y
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Nothing the plan writes may land on what it reads, whatever the names: every cell's
+    /// EXR and PNG preview, the report's folder and the Slurm record against the plan file,
+    /// the scene files and the files they name, and the reference files. A reference file
+    /// that a cell of the plan writes is a cycle that could never finish. Paths compare
+    /// resolved, so two spellings of one file are one file.
+    fn check_files(&self, r: &Reader) -> Result<(), BatchError> {
+        // The folder, or one it would be made in, must not be a file.
+        let file = self
+            .output
+            .ancestors()
+            .find(|a| !a.as_os_str().is_empty() && std::fs::metadata(a).is_ok_and(|m| !m.is_dir()));
+        if let Some(file) = file {
+            return Err(r.error(
+                "output",
+                format!("{} is a file, not a folder", file.display()),
+            ));
+        }
+        let outputs = self.outputs();
+        for cell in &self.cells {
+            if let Some(ReferenceSource::File(f)) = &cell.reference {
+                if let Some(writer) = outputs.get(&resolve(f)) {
+                    return Err(r.error(
+                        &format!("[[scene]] {}: reference", cell.scene),
+                        format!(
+                            "{} is what {writer} of this plan writes; a cell cannot wait for \
+                             the plan's own output",
+                            f.display()
+                        ),
+                    ));
+                }
+            }
+        }
+        let report = resolve(&self.output.join("report"));
+        for (input, what) in self.inputs() {
+            let target = resolve(&input);
+            let writer = if target.starts_with(&report) {
+                Some("the report")
+            } else {
+                outputs.get(&target).map(String::as_str)
+            };
+            if let Some(writer) = writer {
+                return Err(r.error(
+                    "output",
+                    format!(
+                        "{writer} would be written over {what} {}; choose another output folder",
+                        input.display()
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// Everything the plan writes into its output folder, resolved, with what writes it.
+    fn outputs(&self) -> HashMap<PathBuf, String> {
+        let mut out = HashMap::new();
+        out.insert(
+            resolve(&self.output.join(super::slurm::RECORD)),
+            format!("the Slurm record {}", super::slurm::RECORD),
+        );
+        for cell in &self.cells {
+            out.insert(resolve(&cell.output), format!("cell {}", cell.name));
+            out.insert(
+                resolve(&cell.output.with_extension("png")),
+                format!("the preview of cell {}", cell.name),
+            );
+        }
+        out
+    }
+
+    /// The files the plan reads: itself, the scene files, the files a scene file names, and
+    /// reference files; each with what it is, for messages.
+    fn inputs(&self) -> Vec<(PathBuf, &'static str)> {
+        let mut inputs = vec![(self.file.clone(), "the plan file")];
+        let mut seen = HashSet::new();
+        for cell in &self.cells {
+            if seen.insert(cell.scene_file.clone()) {
+                inputs.push((cell.scene_file.clone(), "the scene file"));
+                for named in named_files(&cell.scene_file) {
+                    inputs.push((named, "a file the scene reads"));
+                }
+            }
+            if let Some(ReferenceSource::File(f)) = &cell.reference {
+                if seen.insert(f.clone()) {
+                    inputs.push((f.clone(), "the reference"));
+                }
+            }
+        }
+        inputs
+    }
+
+    /// Refuses a plan whose reference file is not there: run in-process it could never
+    /// finish, since no cell of the plan makes it (`--jobs` and Slurm list such cells as
+    /// waiting instead, for a reference made elsewhere).
+    pub fn check_references(&self) -> Result<(), BatchError> {
+        for cell in &self.cells {
+            if let Some(ReferenceSource::File(f)) = &cell.reference {
+                if !f.exists() {
+                    return Err(BatchError::Plan {
+                        file: self.file.clone(),
+                        message: format!(
+                            "[[scene]] {}: reference: {} does not exist, and no cell of the \
+                             plan makes it; render it first or give a reference table",
+                            cell.scene,
+                            f.display()
+                        ),
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Checks that `file` (the `--slurm` script) neither is a folder nor lands on anything the
+    /// plan reads or writes.
+    pub fn check_script(&self, file: &Path) -> Result<(), BatchError> {
+        let refuse = |message: String| BatchError::Flag {
+            flag: "--slurm",
+            message: format!("{}: {message}", file.display()),
+        };
+        if file.is_dir() {
+            return Err(refuse("is a folder; name the script file".into()));
+        }
+        let target = resolve(file);
+        if let Some(writer) = self.outputs().get(&target) {
+            return Err(refuse(format!("is where {writer} goes")));
+        }
+        if let Some((_, what)) = self.inputs().iter().find(|(f, _)| resolve(f) == target) {
+            return Err(refuse(format!("is {what}; writing would destroy it")));
+        }
+        Ok(())
     }
 
     fn cell_path(&self, name: &str) -> PathBuf {
@@ -671,6 +915,12 @@ impl Plan {
             Some(v) => r.count(&format!("{entry}: parts"), v)?.max(1),
             None => 1,
         };
+        if self.cells.len() as u64 + parts + 1 > MAX_CELLS {
+            return Err(r.error(
+                &format!("{entry}: parts"),
+                format!("{parts} parts: more than the {MAX_CELLS} cells a plan may have"),
+            ));
+        }
         let seed = match table.get("seed") {
             Some(v) => r.count(&format!("{entry}: seed"), v)?,
             None => REFERENCE_SEED,
@@ -775,6 +1025,23 @@ impl Plan {
         let budget = inherited
             .budget
             .ok_or_else(|| r.error(entry, "no budget: set budget or iterations here or above"))?;
+        // Counted before any cell is made: the lists multiply. The plan's total is checked
+        // after each group, which this bounds.
+        let count = techniques
+            .iter()
+            .map(|t| if t.merges() { radii.len() as u64 } else { 1 })
+            .sum::<u64>()
+            .saturating_mul(betas.len() as u64)
+            .saturating_mul(inherited.seeds.len() as u64);
+        if count > MAX_CELLS {
+            return Err(r.error(
+                entry,
+                format!(
+                    "techniques x radii x betas x seeds make {count} cells: more than the \
+                     {MAX_CELLS} cells a plan may have"
+                ),
+            ));
+        }
         let mut cells = Vec::new();
         for &technique in &techniques {
             // Radii are for the techniques that merge; the others get one cell.

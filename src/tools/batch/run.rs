@@ -289,6 +289,7 @@ pub fn run(
     stop: &StopFlag,
     on: &mut dyn FnMut(&Event),
 ) -> Result<usize, BatchError> {
+    plan.check_references()?;
     make_output(&plan.output)?;
     let mut states = states(plan);
     let work = planned(plan, &states, false).len();

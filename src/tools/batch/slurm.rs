@@ -246,6 +246,7 @@ const DELIMITER: &str = "VMERGE_STAGE";
 /// the `#SBATCH` lines to edit before `bash FILE`. Returns the number of array tasks per stage
 /// and the number of cells that cannot run.
 pub fn slurm(plan: &Plan, program: &Path, file: &Path) -> Result<(Vec<usize>, usize), BatchError> {
+    plan.check_script(file)?;
     let (scripts, blocked) = scripts(plan, program)?;
     let mut s = String::from("#!/usr/bin/env bash\n");
     let _ = writeln!(
