@@ -489,6 +489,28 @@ fn resolve(path: &Path) -> PathBuf {
     }
 }
 
+/// The resolution a TOML scene renders at when the plan gives none: its `[render]`
+/// resolution, or the format's default. `None` for a pbrt scene or one that cannot be read
+/// (loading it says why).
+fn scene_resolution(scene: &Path) -> Option<[u32; 2]> {
+    if crate::scene::pbrt::is_pbrt(scene) {
+        return None;
+    }
+    let text = crate::files::read_text(scene, Kind::Scene).ok()?;
+    let table = text.parse::<toml::Table>().ok()?;
+    let Some(given) = table.get("render").and_then(|r| r.get("resolution")) else {
+        return Some(crate::scene::RenderDefaults::default().resolution);
+    };
+    let side = |i: usize| {
+        given
+            .get(i)
+            .and_then(toml::Value::as_integer)
+            .and_then(|v| u32::try_from(v).ok())
+            .filter(|&v| v > 0)
+    };
+    Some([side(0)?, side(1)?])
+}
+
 /// The existing files a TOML scene file names by a string value (meshes, textures, sky
 /// images), relative to its folder. A scene that cannot be read names none here; loading it
 /// reports why.
@@ -715,11 +737,22 @@ impl Plan {
         Ok(plan)
     }
 
-    /// Trace windows of a cell whose resolution the plan gives must touch the image: one
-    /// wholly outside would be found only once the cell had rendered.
+    /// Trace windows must touch the cell's image (the plan's resolution, else a TOML scene's
+    /// own): one wholly outside would be found only once the cell had rendered. A pbrt
+    /// scene's resolution is known once it loads, where the render checks its windows.
     fn check_traces(&self, r: &Reader) -> Result<(), BatchError> {
+        let mut scenes: HashMap<&Path, Option<[u32; 2]>> = HashMap::new();
         for cell in &self.cells {
-            let Some([width, height]) = cell.options.resolution else {
+            if cell.traces.is_empty() {
+                continue;
+            }
+            let resolution = match cell.options.resolution {
+                Some(res) => Some(res),
+                None => *scenes
+                    .entry(&cell.scene_file)
+                    .or_insert_with(|| scene_resolution(&cell.scene_file)),
+            };
+            let Some([width, height]) = resolution else {
                 continue;
             };
             for t in &cell.traces {
