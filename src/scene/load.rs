@@ -619,7 +619,9 @@ impl Loader {
             return Err(self.invalid(format!("{entry}.file"), "the path is empty"));
         }
         let obj_path = self.dir.join(&mesh.file);
-        let bytes = files::read(&obj_path, Kind::Obj)?;
+        // Named with the scene's entry: the path may be a typo the mesh file cannot tell.
+        let bytes = files::read(&obj_path, Kind::Obj)
+            .map_err(|e| self.invalid(format!("{entry}.file"), e.to_string()))?;
         self.builder.input(&obj_path, &bytes);
         let load_options = tobj::LoadOptions {
             triangulate: true,
