@@ -65,7 +65,7 @@ fn furnace_is_one_everywhere() {
         .collect();
     let image_mean = means.iter().sum::<f64>() / n as f64;
     let image_se = (var_of_mean.iter().sum::<f64>()).sqrt() / n as f64;
-    // The bound is 0.5%; it must also be well outside the noise for the test to mean
+    // The bound asked of it is 0.5%; it must also be well outside the noise for the test to mean
     // anything, so check the standard error is small against it.
     assert!(
         image_se < 0.001,
