@@ -203,6 +203,27 @@ fn judge(result: std::thread::Result<Result<(), String>>, file: &str) -> Outcome
     }
 }
 
+/// The file a refusal must name: one of the scene's `files` it mentions, or a path in `dir`
+/// (a file a mutation renamed) or under `/dev/`; `scene` when it mentions none (and so fails).
+fn named_file(
+    result: &std::thread::Result<Result<(), String>>,
+    files: &[(String, Vec<u8>)],
+    dir: &Path,
+    scene: &str,
+) -> String {
+    let dir_text = dir.to_string_lossy().into_owned();
+    match result {
+        Ok(Err(m)) => files
+            .iter()
+            .map(|(n, _)| n.as_str())
+            .chain([dir_text.as_str(), "/dev/"])
+            .find(|n| m.contains(n))
+            .unwrap_or(scene)
+            .to_string(),
+        _ => scene.to_string(),
+    }
+}
+
 #[test]
 fn mutated_inputs_load_or_fail_cleanly() {
     const INPUTS: usize = 21_000;
@@ -282,20 +303,7 @@ fn mutated_inputs_load_or_fail_cleanly() {
                                     .map(|_| ())
                                     .map_err(|e| e.to_string())
                             }));
-                            // An error may name any of the scene's files, or a path it
-                            // names (a mesh the mutation renamed), which lies in `dir`.
-                            let dir_text = dir.to_string_lossy().into_owned();
-                            let named = match &result {
-                                Ok(Err(m)) => source
-                                    .files
-                                    .iter()
-                                    .map(|(n, _)| n.as_str())
-                                    .chain([dir_text.as_str(), "/dev/"])
-                                    .find(|n| m.contains(n))
-                                    .unwrap_or("scene.toml")
-                                    .to_string(),
-                                _ => "scene.toml".to_string(),
-                            };
+                            let named = named_file(&result, &source.files, &dir, "scene.toml");
                             let outcome = judge(result, &named);
                             (source.files[target].0.clone(), outcome)
                         };
@@ -716,20 +724,7 @@ fn mutated_pbrt_and_ply_inputs_load_or_fail_cleanly() {
                                 .map_err(|e| e.to_string())
                         }));
                         let too_long = matches!(&result, Ok(Err(m)) if m.len() >= 2000);
-                        // An error names one of the scene's files, or a path it names (a
-                        // file the mutation renamed), which lies in `dir`.
-                        let dir_text = dir.to_string_lossy().into_owned();
-                        let named = match &result {
-                            Ok(Err(m)) => source
-                                .files
-                                .iter()
-                                .map(|(n, _)| n.as_str())
-                                .chain([dir_text.as_str(), "/dev/"])
-                                .find(|n| m.contains(n))
-                                .unwrap_or("scene.pbrt")
-                                .to_string(),
-                            _ => "scene.pbrt".to_string(),
-                        };
+                        let named = named_file(&result, &source.files, &dir, "scene.pbrt");
                         let mut outcome = match judge(result, &named) {
                             Outcome::Refused if too_long => {
                                 Outcome::Bad("a message of 2,000 bytes or more".into())

@@ -70,6 +70,30 @@ impl Served {
         Served { child, address }
     }
 
+    /// A render of cornell-box for `time` at `resolution` into `out`, with its live page on
+    /// loopback, once the page serves its first image (within `wait`).
+    fn render_with_image(out: &Path, time: &str, resolution: &str, wait: Duration) -> Served {
+        let served = Served::start(&[
+            "render".as_ref(),
+            scene("cornell-box").as_os_str(),
+            "--time".as_ref(),
+            time.as_ref(),
+            "--resolution".as_ref(),
+            resolution.as_ref(),
+            "--no-png".as_ref(),
+            "-o".as_ref(),
+            out.as_os_str(),
+            "--preview=127.0.0.1:0".as_ref(),
+        ]);
+        let local = served.address.to_string();
+        let deadline = Instant::now() + wait;
+        while request(served.address, "GET", "/image/0", &local) != Some(200) {
+            assert!(Instant::now() < deadline, "no image after {wait:?}");
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        served
+    }
+
     fn url(&self) -> String {
         format!("http://{}/", self.address)
     }
@@ -345,25 +369,9 @@ fn serves_its_routes_only_and_stops_with_the_render() {
 fn a_stalled_client_does_not_delay_the_exit() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("render.exr");
-    let mut served = Served::start(&[
-        "render".as_ref(),
-        scene("cornell-box").as_os_str(),
-        "--time".as_ref(),
-        "3s".as_ref(),
-        "--resolution".as_ref(),
-        "64x64".as_ref(),
-        "--no-png".as_ref(),
-        "-o".as_ref(),
-        out.as_os_str(),
-        "--preview=127.0.0.1:0".as_ref(),
-    ]);
+    let mut served = Served::render_with_image(&out, "3s", "64x64", Duration::from_secs(3));
     let address = served.address;
     let local = address.to_string();
-    let deadline = Instant::now() + Duration::from_secs(3);
-    while request(address, "GET", "/image/0", &local) != Some(200) {
-        assert!(Instant::now() < deadline, "no image after 3 s");
-        std::thread::sleep(Duration::from_millis(50));
-    }
     // Pipelined requests for 20 MB of answers, far beyond what the sockets buffer.
     let mut stalled = TcpStream::connect(address).unwrap();
     let one = format!("GET /image/0 HTTP/1.1\r\nHost: {local}\r\n\r\n");
@@ -404,25 +412,9 @@ fn stalled_clients_free_their_workers() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("render.exr");
     // 1024x1024: a 12 MiB image, more than a socket's send buffer can hold (4 MiB at most).
-    let served = Served::start(&[
-        "render".as_ref(),
-        scene("cornell-box").as_os_str(),
-        "--time".as_ref(),
-        "40s".as_ref(),
-        "--resolution".as_ref(),
-        "1024x1024".as_ref(),
-        "--no-png".as_ref(),
-        "-o".as_ref(),
-        out.as_os_str(),
-        "--preview=127.0.0.1:0".as_ref(),
-    ]);
+    let served = Served::render_with_image(&out, "40s", "1024x1024", Duration::from_secs(20));
     let address = served.address;
     let local = address.to_string();
-    let deadline = Instant::now() + Duration::from_secs(20);
-    while request(address, "GET", "/image/0", &local) != Some(200) {
-        assert!(Instant::now() < deadline, "no image after 20 s");
-        std::thread::sleep(Duration::from_millis(100));
-    }
     // One stalled client per worker (4), each with a small receive buffer so that the image
     // cannot all sit in buffers.
     let stalled: Vec<TcpStream> = (0..4)
