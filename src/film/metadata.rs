@@ -139,6 +139,16 @@ impl ErrorSample {
             other => self.others.get(other),
         }
     }
+
+    /// The value of `measure` in trace window `window` (MAE and RMSE only), if measured.
+    pub fn window(&self, window: usize, measure: Measure) -> Option<f64> {
+        let [mae, rmse] = *self.traces.get(window)?;
+        match measure {
+            Measure::Mae => Some(mae),
+            Measure::Rmse => Some(rmse),
+            _ => None,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -560,10 +570,10 @@ mod tests {
         let map: HashMap<&str, String> = sample().to_attributes().unwrap().into_iter().collect();
         let errors = &map[attribute::ERRORS];
         assert_eq!(errors.lines().count(), 2);
-        assert_eq!(
-            errors.lines().nth(0).map(|l| l.ends_with(" - - - -")),
-            Some(true)
-        );
+        assert!(errors
+            .lines()
+            .next()
+            .is_some_and(|l| l.ends_with(" - - - -")));
         assert_eq!(
             errors.lines().nth(1),
             Some("2.5 2 0 -0 7 8 9 10 0.25 - - 0.999999999")

@@ -73,6 +73,14 @@ impl Measure {
         }
     }
 
+    /// What [`Measure::as_error`] gives, in words (chart axes).
+    pub fn error_label(self) -> &'static str {
+        match self {
+            Measure::Ssim => "1 - SSIM",
+            other => other.label(),
+        }
+    }
+
     /// SSIM grows as images get closer; every other measure falls.
     pub fn higher_is_better(self) -> bool {
         self == Measure::Ssim
