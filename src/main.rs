@@ -325,7 +325,13 @@ fn run(cli: Cli) -> Result<()> {
             if relative {
                 measure.push(Measure::RelativeMse);
             }
-            let errors = tools::errors(&a, &b)?;
+            // Scripts asking for pixel-wise measures only need not wait for FLIP.
+            let selection = if !measure.is_empty() && measure.iter().all(|m| m.is_pointwise()) {
+                Selection::Pointwise
+            } else {
+                Selection::All
+            };
+            let errors = tools::errors(&a, &b, selection)?;
             if measure.is_empty() {
                 for (m, value) in errors.iter() {
                     println!("{m} {value}");
@@ -601,7 +607,7 @@ fn is_input_error(e: &anyhow::Error) -> bool {
 
 // `vmerge batch`: plans of renders (src/tools/batch).
 
-use vmerge::metrics::Measure;
+use vmerge::metrics::{Measure, Selection};
 use vmerge::tools::batch::{self, Plan};
 use vmerge::tools::Metric;
 

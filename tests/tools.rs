@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 use vmerge::color::Rgb;
 use vmerge::film::{exr as film_exr, ErrorSample, Film, Image, Metadata, TraceWindow};
-use vmerge::metrics::Measure;
+use vmerge::metrics::{Measure, Selection};
 use vmerge::options::RenderOptions;
 use vmerge::options::Technique;
 use vmerge::sampling::Rng;
@@ -289,7 +289,7 @@ fn diff_errors_and_average_on_a_tiny_pair() {
         vec![Rgb::new(0.5, 1.0, 0.0), Rgb::new(0.5, 1.5, 0.0)]
     );
     // Differences 1, 1, 0, -0.5, 6, 0: sum |d| = 8.5, sum d^2 = 38.25, n = 6.
-    let errors = tools::errors(&a, &b).unwrap();
+    let errors = tools::errors(&a, &b, Selection::All).unwrap();
     assert_eq!(errors.get(Measure::Mae), Some(8.5 / 6.0));
     assert_eq!(errors.get(Measure::Rmse), Some((38.25f64 / 6.0).sqrt()));
     assert_eq!(tools::average(&a).unwrap(), [1.75, 1.5, 2.0]);
@@ -298,14 +298,16 @@ fn diff_errors_and_average_on_a_tiny_pair() {
     let expected = terms.iter().sum::<f64>() / 6.0;
     let relative = errors.get(Measure::RelativeMse).unwrap();
     assert!((relative - expected).abs() < 1e-12 * expected, "{relative}");
-    let same = tools::errors(&a, &a).unwrap();
+    let same = tools::errors(&a, &a, Selection::All).unwrap();
     assert_eq!(same.get(Measure::RelativeMse), Some(0.0));
     // 2x1 pixels: too small for the windows of FLIP and SSIM.
     assert_eq!(same.get(Measure::Ssim), None);
 
     let wide = write_image(dir.path(), "wide.exr", 4, vec![Rgb::BLACK; 4]);
     for message in [
-        tools::errors(&a, &wide).unwrap_err().to_string(),
+        tools::errors(&a, &wide, Selection::All)
+            .unwrap_err()
+            .to_string(),
         tools::diff(&out, &a, &wide).unwrap_err().to_string(),
     ] {
         assert!(

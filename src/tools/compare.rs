@@ -10,21 +10,15 @@ pub fn average(path: &Path) -> Result<[f64; 3], FilmError> {
     Ok(film::average(&exr::read_image(path)?.pixels))
 }
 
-/// Every measure of [`Measure::ALL`] of `a` against the reference `b` (see
-/// [`crate::metrics`]); FLIP and SSIM are left out of images narrower or lower than
+/// The measures of `selection` of `a` against the reference `b` (see [`crate::metrics`]);
+/// FLIP and SSIM are left out of images narrower or lower than
 /// [`MIN_SIZE`](crate::metrics::ssim::MIN_SIZE) pixels. Refuses images of different resolutions.
-///
-/// [`Measure::ALL`]: crate::metrics::Measure::ALL
-pub fn errors(a_path: &Path, b_path: &Path) -> Result<Errors, FilmError> {
+pub fn errors(a_path: &Path, b_path: &Path, selection: Selection) -> Result<Errors, FilmError> {
     let a = exr::read_image(a_path)?;
     let b = exr::read_image(b_path)?;
     same_size(&a, a_path, &b, b_path)?;
     Ok(metrics::measure(
-        &a.pixels,
-        &b.pixels,
-        a.width,
-        a.height,
-        Selection::All,
+        &a.pixels, &b.pixels, a.width, a.height, selection,
     ))
 }
 
