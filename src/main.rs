@@ -652,7 +652,11 @@ fn batch(args: BatchArgs) -> Result<()> {
             }
         }
         (Some(BatchCommand::Report { plan }), _) => {
-            let index = batch::report(&Plan::load(&plan)?)?;
+            let plan = Plan::load(&plan)?;
+            let index = batch::report(&plan)?;
+            for w in batch::report_warnings(&plan) {
+                eprintln!("warning: {w}");
+            }
             eprintln!("wrote {}", index.display());
         }
         (None, None) => anyhow::bail!("say which plan: vmerge batch PLAN.toml"),
