@@ -102,9 +102,10 @@ struct RenderArgs {
     /// Stop after N iterations (one sample per pixel each).
     #[arg(long, short = 'n')]
     iterations: Option<u64>,
-    /// Stop after this time (e.g. 90s, 10m, 2h).
-    #[arg(long, value_parser = vmerge::options::parse_duration)]
+    #[arg(long, help = vmerge::options::TIME_HELP, value_parser = vmerge::options::parse_duration)]
     time: Option<Duration>,
+    #[arg(long, help = vmerge::options::CPU_TIME_HELP, value_parser = vmerge::options::parse_duration)]
+    cpu_time: Option<Duration>,
     /// Output EXR; a PNG preview is written next to it.
     #[arg(long, short = 'o', default_value = "render.exr")]
     output: PathBuf,
@@ -221,9 +222,12 @@ struct ContinueArgs {
     /// Render N more iterations.
     #[arg(long, short = 'n')]
     iterations: Option<u64>,
-    /// Render for this much more time.
+    /// Render for this much more time (the stopping rule of `render --time`).
     #[arg(long, value_parser = vmerge::options::parse_duration)]
     time: Option<Duration>,
+    /// Render for this much more CPU time, all threads together.
+    #[arg(long, value_parser = vmerge::options::parse_duration)]
+    cpu_time: Option<Duration>,
     /// Where to write (default: over the input).
     #[arg(long, short = 'o')]
     output: Option<PathBuf>,
@@ -405,8 +409,10 @@ fn render(args: RenderArgs) -> Result<()> {
     let stop = StopAfter {
         iterations: args.iterations,
         time: args.time,
+        cpu_time: args.cpu_time,
     };
-    if stop.iterations.is_none() && stop.time.is_none() {
+    vmerge::options::validate_cpu_time(stop.cpu_time)?;
+    if !stop.is_bounded() {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
     // Checked again by the library; here before the scene loads, so a mistake costs nothing.
@@ -459,8 +465,10 @@ fn resume(args: ContinueArgs) -> Result<()> {
             .iterations
             .map(|n| job.film.iterations.saturating_add(n)),
         time: args.time,
+        cpu_time: args.cpu_time,
     };
-    if stop.iterations.is_none() && stop.time.is_none() {
+    vmerge::options::validate_cpu_time(stop.cpu_time)?;
+    if !stop.is_bounded() {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
     run_job(job, stop, args.preview.preview)
@@ -681,7 +689,11 @@ fn batch(args: BatchArgs) -> Result<()> {
             }
         }
         (Some(BatchCommand::Report { plan }), _) => {
-            let index = batch::report(&Plan::load(&plan)?)?;
+            let plan = Plan::load(&plan)?;
+            let index = batch::report(&plan)?;
+            for w in batch::report_warnings(&plan) {
+                eprintln!("warning: {w}");
+            }
             eprintln!("wrote {}", index.display());
         }
         (None, None) => anyhow::bail!("say which plan: vmerge batch PLAN.toml"),

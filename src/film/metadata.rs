@@ -1,5 +1,5 @@
 //! What vmerge records about a render next to its pixels: the technique and every option, the
-//! scene and its hash, the seed, iterations, time, dropped samples, statistics and the error
+//! scene and its hash, the seed, iterations, wall and CPU time, dropped samples, statistics and the error
 //! series against a reference (000 sec. 3.4).
 //!
 //! In an EXR each field is one text attribute named `vmerge.<field>` (see [`Metadata::to_attributes`]),
@@ -22,6 +22,7 @@ pub mod attribute {
     pub const ACCEL: &str = "vmerge.accel";
     pub const ITERATIONS: &str = "vmerge.iterations";
     pub const RENDER_SECONDS: &str = "vmerge.render_seconds";
+    pub const CPU_SECONDS: &str = "vmerge.cpu_seconds";
     pub const DROPPED_SAMPLES: &str = "vmerge.dropped_samples";
     pub const STATISTICS: &str = "vmerge.statistics";
     pub const REFERENCE: &str = "vmerge.reference";
@@ -164,7 +165,12 @@ pub struct Metadata {
     /// Name of the ray-query backend (not part of the image).
     pub accel: String,
     pub iterations: u64,
+    /// Wall-clock seconds spent rendering (from the first iteration to the last, every run of
+    /// a continued render added; a merge adds its inputs').
     pub render_seconds: f64,
+    /// CPU seconds spent rendering, all threads together, added up as `render_seconds` is;
+    /// `None` when unknown (a file written before it was recorded, or a continuation of one).
+    pub cpu_seconds: Option<f64>,
     /// Samples dropped for being NaN or infinite.
     pub dropped_samples: u64,
     /// Technique-specific statistics, and `merged_seeds` after a merge.
@@ -186,6 +192,7 @@ impl Metadata {
             accel: accel.to_string(),
             iterations: 0,
             render_seconds: 0.0,
+            cpu_seconds: Some(0.0),
             dropped_samples: 0,
             statistics: Vec::new(),
             reference: None,
@@ -237,6 +244,9 @@ impl Metadata {
             (RENDER_SECONDS, self.render_seconds.to_string()),
             (DROPPED_SAMPLES, self.dropped_samples.to_string()),
         ];
+        if let Some(cpu) = self.cpu_seconds {
+            out.push((CPU_SECONDS, cpu.to_string()));
+        }
         if !self.statistics.is_empty() {
             let lines: Vec<String> = self
                 .statistics
@@ -264,7 +274,7 @@ impl Metadata {
 
     /// The checks `render` applies to its command line, for a render read back: the options
     /// against [`RenderOptions::validate`], the iterations within
-    /// [`MAX_ITERATIONS`](crate::options::MAX_ITERATIONS), a finite non-negative time.
+    /// [`MAX_ITERATIONS`](crate::options::MAX_ITERATIONS), finite non-negative times.
     pub fn validate(&self) -> Result<(), MetadataError> {
         use attribute::*;
         self.options.validate().map_err(|e| invalid(OPTIONS, e))?;
@@ -282,6 +292,12 @@ impl Metadata {
             return Err(invalid(
                 RENDER_SECONDS,
                 format!("{} is not a finite time >= 0", self.render_seconds),
+            ));
+        }
+        if let Some(cpu) = self.cpu_seconds.filter(|c| !(c.is_finite() && *c >= 0.0)) {
+            return Err(invalid(
+                CPU_SECONDS,
+                format!("{cpu} is not a finite time >= 0"),
             ));
         }
         Ok(())
@@ -377,6 +393,9 @@ impl Metadata {
             accel: required(ACCEL)?,
             iterations: parse_number(ITERATIONS, &required(ITERATIONS)?)?,
             render_seconds: parse_number(RENDER_SECONDS, &required(RENDER_SECONDS)?)?,
+            cpu_seconds: get(CPU_SECONDS)
+                .map(|text| parse_number(CPU_SECONDS, &text))
+                .transpose()?,
             dropped_samples: parse_number(DROPPED_SAMPLES, &required(DROPPED_SAMPLES)?)?,
             statistics,
             reference: get(REFERENCE),
@@ -507,6 +526,7 @@ mod tests {
         let mut m = Metadata::new("/a/scene.toml".into(), "abc123".into(), options, "bvh");
         m.iterations = 12;
         m.render_seconds = 0.1 + 0.2;
+        m.cpu_seconds = Some(0.5 + 1.0 / 3.0);
         m.dropped_samples = 3;
         m.statistics = vec![
             ("photons".into(), "4096".into()),
@@ -566,6 +586,20 @@ mod tests {
     }
 
     #[test]
+    fn a_file_without_cpu_time_reads_as_unknown() {
+        let mut map: HashMap<&str, String> =
+            sample().to_attributes().unwrap().into_iter().collect();
+        assert!(map.remove(attribute::CPU_SECONDS).is_some());
+        let m = Metadata::from_attributes(|name| map.get(name).cloned()).unwrap();
+        assert_eq!(m.cpu_seconds, None);
+        assert!(!m
+            .to_attributes()
+            .unwrap()
+            .iter()
+            .any(|(n, _)| *n == attribute::CPU_SECONDS));
+    }
+
+    #[test]
     fn errors_are_one_line_per_sample() {
         let map: HashMap<&str, String> = sample().to_attributes().unwrap().into_iter().collect();
         let errors = &map[attribute::ERRORS];
@@ -604,6 +638,7 @@ mod tests {
         };
         for (name, value) in [
             (attribute::ITERATIONS, "-1"),
+            (attribute::CPU_SECONDS, "two"),
             (attribute::SEED, "x"),
             (attribute::TECHNIQUE, "pt"),
             (attribute::OPTIONS, "beta = 'two'"),
