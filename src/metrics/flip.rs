@@ -26,8 +26,8 @@
 //! luminances stands in, since the published rule would need infinitely many exposures.
 //!
 //! The filters are separable, applied in x then y with borders clamped to the edge, in f32: NVIDIA's
-//! C++ implementation behind the `flip-evaluator` package, which the tests compare against
-//! (agreement to a few 1e-5 on the mean).
+//! C++ implementation behind the `flip-evaluator` package, which tests/metrics.rs compares
+//! against (means within 2e-6).
 
 use crate::color::Rgb;
 use rayon::prelude::*;
