@@ -42,11 +42,17 @@ enum Command {
         a: PathBuf,
         b: PathBuf,
     },
-    /// Print the mean absolute and RMS error between two images (B the reference).
+    /// Print the error measures of image A against the reference B, one `name value` line
+    /// each: mean absolute and RMS error, relative MSE, LDR-FLIP and HDR-FLIP, SSIM (the last
+    /// three need images of at least 11x11 pixels).
     Errors {
         a: PathBuf,
         b: PathBuf,
-        /// Print the relative MSE, mean of (a - b)^2 / (b^2 + 0.01), instead.
+        /// Print only these measures' values, on one line in the order given (repeatable; `-`
+        /// for one the images are too small for).
+        #[arg(long, value_parser = measure_parser())]
+        measure: Vec<Measure>,
+        /// Print only the relative MSE, mean of (a - b)^2 / (b^2 + 0.01): `--measure relmse`.
         #[arg(long)]
         relative: bool,
     },
@@ -96,9 +102,10 @@ struct RenderArgs {
     /// Stop after N iterations (one sample per pixel each).
     #[arg(long, short = 'n')]
     iterations: Option<u64>,
-    /// Stop after this time (e.g. 90s, 10m, 2h).
-    #[arg(long, value_parser = vmerge::options::parse_duration)]
+    #[arg(long, help = vmerge::options::TIME_HELP, value_parser = vmerge::options::parse_duration)]
     time: Option<Duration>,
+    #[arg(long, help = vmerge::options::CPU_TIME_HELP, value_parser = vmerge::options::parse_duration)]
+    cpu_time: Option<Duration>,
     /// Output EXR; a PNG preview is written next to it.
     #[arg(long, short = 'o', default_value = "render.exr")]
     output: PathBuf,
@@ -215,9 +222,12 @@ struct ContinueArgs {
     /// Render N more iterations.
     #[arg(long, short = 'n')]
     iterations: Option<u64>,
-    /// Render for this much more time.
+    /// Render for this much more time (the stopping rule of `render --time`).
     #[arg(long, value_parser = vmerge::options::parse_duration)]
     time: Option<Duration>,
+    /// Render for this much more CPU time, all threads together.
+    #[arg(long, value_parser = vmerge::options::parse_duration)]
+    cpu_time: Option<Duration>,
     /// Where to write (default: over the input).
     #[arg(long, short = 'o')]
     output: Option<PathBuf>,
@@ -310,13 +320,34 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bake { output, input } => Ok(tools::bake(&output, &input)?),
         Command::Strip { output, input } => Ok(tools::strip(&output, &input)?),
         Command::Diff { output, a, b } => Ok(tools::diff(&output, &a, &b)?),
-        Command::Errors { a, b, relative } => {
+        Command::Errors {
+            a,
+            b,
+            mut measure,
+            relative,
+        } => {
             if relative {
-                println!("{}", tools::relative_mse(&a, &b)?);
-            } else {
-                let (mae, rmse) = tools::errors(&a, &b)?;
-                println!("{mae} {rmse}");
+                measure.push(Measure::RelativeMse);
             }
+            // Scripts asking for pixel-wise measures only need not wait for FLIP.
+            let selection = if !measure.is_empty() && measure.iter().all(|m| m.is_pointwise()) {
+                Selection::Pointwise
+            } else {
+                Selection::All
+            };
+            let errors = tools::errors(&a, &b, selection)?;
+            if measure.is_empty() {
+                for (m, value) in errors.iter() {
+                    println!("{m} {value}");
+                }
+                return Ok(());
+            }
+            // `-` for a measure the images are too small for.
+            let values: Vec<String> = measure
+                .iter()
+                .map(|&m| errors.get(m).map_or("-".into(), |v| v.to_string()))
+                .collect();
+            println!("{}", values.join(" "));
             Ok(())
         }
         Command::Average { input } => {
@@ -378,8 +409,10 @@ fn render(args: RenderArgs) -> Result<()> {
     let stop = StopAfter {
         iterations: args.iterations,
         time: args.time,
+        cpu_time: args.cpu_time,
     };
-    if stop.iterations.is_none() && stop.time.is_none() {
+    vmerge::options::validate_cpu_time(stop.cpu_time)?;
+    if !stop.is_bounded() {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
     // Checked again by the library; here before the scene loads, so a mistake costs nothing.
@@ -432,8 +465,10 @@ fn resume(args: ContinueArgs) -> Result<()> {
             .iterations
             .map(|n| job.film.iterations.saturating_add(n)),
         time: args.time,
+        cpu_time: args.cpu_time,
     };
-    if stop.iterations.is_none() && stop.time.is_none() {
+    vmerge::options::validate_cpu_time(stop.cpu_time)?;
+    if !stop.is_bounded() {
         anyhow::bail!(vmerge::render::RenderError::NoStop);
     }
     run_job(job, stop, args.preview.preview)
@@ -580,6 +615,7 @@ fn is_input_error(e: &anyhow::Error) -> bool {
 
 // `vmerge batch`: plans of renders (src/tools/batch).
 
+use vmerge::metrics::{Measure, Selection};
 use vmerge::tools::batch::{self, Plan};
 use vmerge::tools::Metric;
 
@@ -629,6 +665,15 @@ fn warn_blocked(blocked: usize) {
     }
 }
 
+fn measure_parser() -> impl TypedValueParser<Value = Measure> {
+    by_name(
+        Measure::ALL,
+        Measure::name,
+        Measure::label,
+        "no such measure",
+    )
+}
+
 fn metric_parser() -> impl TypedValueParser<Value = Metric> {
     by_name(Metric::ALL, Metric::name, Metric::label, "no such metric")
 }
@@ -644,7 +689,11 @@ fn batch(args: BatchArgs) -> Result<()> {
             }
         }
         (Some(BatchCommand::Report { plan }), _) => {
-            let index = batch::report(&Plan::load(&plan)?)?;
+            let plan = Plan::load(&plan)?;
+            let index = batch::report(&plan)?;
+            for w in batch::report_warnings(&plan) {
+                eprintln!("warning: {w}");
+            }
             eprintln!("wrote {}", index.display());
         }
         (None, None) => anyhow::bail!("say which plan: vmerge batch PLAN.toml"),

@@ -869,6 +869,15 @@ pub const MAX_ITERATIONS: u64 = 1 << 48;
 /// The longest `time` or `snapshot` interval: 100 years.
 pub const MAX_DURATION: Duration = Duration::from_secs(100 * 365 * 24 * 3600);
 
+/// The help of the wall-clock budget, for every front end: the stopping rule and its bound.
+pub const TIME_HELP: &str = "Stop after this time (e.g. 90s, 10m, 2h) from the first \
+iteration: no iteration starts that would end past it, predicting each to take the mean of \
+those before, so a render overshoots only by what its last iteration took beyond the mean";
+
+/// The help of the CPU-time budget.
+pub const CPU_TIME_HELP: &str = "Stop after this CPU time (e.g. 90s, 10m), all threads \
+together: equal work for renders that share a machine; the same stopping rule as --time";
+
 /// The stop conditions and the snapshot interval: not part of the image (so not in
 /// [`RenderOptions`]), checked like the table's options. `iterations` counts the iterations
 /// the render ends with, a continued render's earlier ones included.
@@ -895,26 +904,32 @@ pub fn validate_run(
         }
     }
     for (name, value) in [("time", time), ("snapshot", snapshot)] {
-        match value {
-            Some(d) if d.is_zero() => {
-                return Err(OptionError::OutOfRange {
-                    option: OptionName(name),
-                    value: "0s".into(),
-                    expected: "a duration > 0 (e.g. 90s, 10m, 2h)",
-                })
-            }
-            Some(d) if d > MAX_DURATION => {
-                return Err(OptionError::Above {
-                    option: OptionName(name),
-                    value: d.as_secs(),
-                    limit: MAX_DURATION.as_secs(),
-                    why: "seconds, 100 years".into(),
-                })
-            }
-            _ => {}
-        }
+        validate_duration(name, value)?;
     }
     Ok(())
+}
+
+/// The CPU-time budget, checked as [`validate_run`] checks the wall-clock one.
+pub fn validate_cpu_time(cpu_time: Option<Duration>) -> Result<(), OptionError> {
+    validate_duration("cpu_time", cpu_time)
+}
+
+/// A duration option: more than zero, at most [`MAX_DURATION`].
+fn validate_duration(name: &'static str, value: Option<Duration>) -> Result<(), OptionError> {
+    match value {
+        Some(d) if d.is_zero() => Err(OptionError::OutOfRange {
+            option: OptionName(name),
+            value: "0s".into(),
+            expected: "a duration > 0 (e.g. 90s, 10m, 2h)",
+        }),
+        Some(d) if d > MAX_DURATION => Err(OptionError::Above {
+            option: OptionName(name),
+            value: d.as_secs(),
+            limit: MAX_DURATION.as_secs(),
+            why: "seconds, 100 years".into(),
+        }),
+        _ => Ok(()),
+    }
 }
 
 /// The most worker threads a render may ask for: 4 per core of this machine. More only

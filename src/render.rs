@@ -11,6 +11,7 @@ use crate::integrator::{Counters, Integrator, RenderContext};
 use crate::memory::MemoryError;
 use crate::options::{OptionError, OptionName, RenderOptions, Technique};
 use crate::scene::{Camera, LoadOptions, Scene, SceneError};
+use cpu_time::ProcessTime;
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -48,11 +49,17 @@ pub enum RenderError {
         last_good: Option<PathBuf>,
     },
     #[error(
-        "say when to stop: {} N and/or {} T",
+        "say when to stop: {} N, {} T and/or {} T",
         OptionName("iterations"),
-        OptionName("time")
+        OptionName("time"),
+        OptionName("cpu_time")
     )]
     NoStop,
+    #[error(
+        "{} needs the process's CPU clock, which this system does not give",
+        OptionName("cpu_time")
+    )]
+    NoCpuClock,
     #[error("{file}: the scene changed since this render began (hash {recorded} recorded, {now} now); use {} to continue anyway", OptionName("force"))]
     SceneChanged {
         file: PathBuf,
@@ -101,11 +108,53 @@ pub fn render_iterations(
 }
 
 /// When a render stops: after a number of iterations (in total, a continued render's earlier
-/// iterations included), after a time (of this run), or whichever comes first.
+/// iterations included), after a time or a CPU time (of this run), or whichever comes first.
+/// The time budgets start no iteration predicted to end past them ([`iteration_fits`]).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct StopAfter {
     pub iterations: Option<u64>,
+    /// Wall-clock time from the first iteration of this run.
     pub time: Option<Duration>,
+    /// CPU time the render's threads consume together (the process's CPU time, all threads
+    /// summed): a budget of work, so renders that share a machine get equal shares of it
+    /// whatever the load.
+    pub cpu_time: Option<Duration>,
+}
+
+impl StopAfter {
+    /// Whether anything stops the render at all.
+    pub fn is_bounded(&self) -> bool {
+        self.iterations.is_some() || self.time.is_some() || self.cpu_time.is_some()
+    }
+}
+
+/// The stopping rule of the time budgets: whether another iteration fits in the `left`
+/// seconds of a budget, for a render that has spent `spent` seconds on its `iterations`
+/// iterations. The next iteration is predicted to take their mean, so the render stops early
+/// rather than late; one with no iteration yet starts one if anything is left. A render thus
+/// overshoots its budget only by what its last iteration took beyond the mean.
+pub fn iteration_fits(left: f64, spent: f64, iterations: u64) -> bool {
+    left > 0.0 && (iterations == 0 || left >= spent / iterations as f64)
+}
+
+/// The render's clocks, from the start of a run: wall time and the process's CPU time.
+struct Clocks {
+    wall: Instant,
+    /// `None` where the system gives no process CPU clock.
+    cpu: Option<ProcessTime>,
+}
+
+impl Clocks {
+    fn start() -> Clocks {
+        Clocks {
+            wall: Instant::now(),
+            cpu: ProcessTime::try_now().ok(),
+        }
+    }
+
+    fn cpu(&self) -> Option<Duration> {
+        self.cpu.as_ref().and_then(|c| c.try_elapsed().ok())
+    }
 }
 
 /// What the loop reports as it goes: progress after every iteration, and the problems it
@@ -136,6 +185,9 @@ pub struct Progress {
     pub samples_per_second: f64,
     pub rays_per_second: f64,
     pub rmse: Option<f64>,
+    /// The CPU time of this run, all threads together; `None` where the system gives no
+    /// process CPU clock.
+    pub cpu: Option<Duration>,
     /// The technique's own work counts in this run ([`Integrator::counters`]): UPG's merges
     /// and tentative rays, none for the other techniques.
     pub counters: Counters,
@@ -158,15 +210,29 @@ pub struct RenderJob<'a> {
 }
 
 /// Measures the current image against the reference, if any, and records the sample in the
-/// metadata; returns its RMS error.
+/// metadata; returns its RMS error. The `last` sample of a run holds every measure and
+/// replaces one recorded at the same iteration.
 fn record_error(
-    tracker: &Option<ErrorTracker>,
+    tracker: &mut Option<ErrorTracker>,
     film: &Film,
     metadata: &mut Metadata,
+    last: bool,
 ) -> Option<f64> {
-    let sample = tracker
-        .as_ref()?
-        .measure(&film.mean(), metadata.render_seconds, film.iterations);
+    let tracker = tracker.as_mut()?;
+    let (mean, seconds) = (film.mean(), metadata.render_seconds);
+    let sample = if last {
+        tracker.measure_all(&mean, seconds, film.iterations)
+    } else {
+        tracker.measure(&mean, seconds, film.iterations)
+    };
+    if last
+        && metadata
+            .errors
+            .last()
+            .is_some_and(|e| e.iterations == film.iterations)
+    {
+        metadata.errors.pop();
+    }
     let rmse = sample.rmse;
     metadata.errors.push(sample);
     Some(rmse)
@@ -201,10 +267,11 @@ impl RenderJob<'_> {
         mut observer: Option<&mut dyn Observer>,
         mut on_event: impl FnMut(RunEvent),
     ) -> Result<(), RenderError> {
-        if stop.iterations.is_none() && stop.time.is_none() {
+        if !stop.is_bounded() {
             return Err(RenderError::NoStop);
         }
         crate::options::validate_run(stop.iterations, stop.time, self.snapshot_every)?;
+        crate::options::validate_cpu_time(stop.cpu_time)?;
         for path in self.written_paths() {
             for stale in crate::film::remove_stale_temporaries(&path) {
                 on_event(RunEvent::Warning(&RunWarning::RemovedTemporary(stale)));
@@ -221,8 +288,15 @@ impl RenderJob<'_> {
             options: &self.options,
         });
         let mut frame = vec![Rgb::BLACK; self.film.pixel_count()];
-        let start = Instant::now();
+        let clocks = Clocks::start();
+        if stop.cpu_time.is_some() && clocks.cpu.is_none() {
+            return Err(RenderError::NoCpuClock);
+        }
+        let start = clocks.wall;
         let earlier_seconds = self.metadata.render_seconds;
+        // A render whose earlier runs' CPU time is unknown (written before it was recorded)
+        // predicts its iterations' CPU time from this run's alone.
+        let earlier_cpu = self.metadata.cpu_seconds;
         let mut last_snapshot = start;
         let mut last_error = None::<Instant>;
         let mut rays = 0u64;
@@ -231,9 +305,30 @@ impl RenderJob<'_> {
         // The output as of the last snapshot written, if one was.
         let mut last_good = None::<PathBuf>;
         loop {
+            let wall = start.elapsed();
+            let cpu = clocks.cpu();
             let done_iterations = stop.iterations.is_some_and(|n| self.film.iterations >= n);
-            let done_time = stop.time.is_some_and(|t| start.elapsed() >= t);
-            if done_iterations || done_time || stop_flag.load(Ordering::Relaxed) {
+            let done_time = stop.time.is_some_and(|t| {
+                !iteration_fits(
+                    t.as_secs_f64() - wall.as_secs_f64(),
+                    earlier_seconds + wall.as_secs_f64(),
+                    self.film.iterations,
+                )
+            });
+            let done_cpu = stop.cpu_time.is_some_and(|t| {
+                let Some(cpu) = cpu else {
+                    // The clock failed: the budget can no longer be told, so it is spent.
+                    return true;
+                };
+                let (spent, iterations) = match earlier_cpu {
+                    Some(earlier) => (earlier + cpu.as_secs_f64(), self.film.iterations),
+                    None => (cpu.as_secs_f64(), iterations_here),
+                };
+                !iteration_fits(t.as_secs_f64() - cpu.as_secs_f64(), spent, iterations)
+            });
+            self.metadata.render_seconds = earlier_seconds + wall.as_secs_f64();
+            self.metadata.cpu_seconds = earlier_cpu.zip(cpu).map(|(e, c)| e + c.as_secs_f64());
+            if done_iterations || done_time || done_cpu || stop_flag.load(Ordering::Relaxed) {
                 break;
             }
             frame.par_iter_mut().for_each(|p| *p = Rgb::BLACK);
@@ -244,13 +339,15 @@ impl RenderJob<'_> {
             self.metadata.dropped_samples += stats.dropped_samples;
             self.metadata.iterations = self.film.iterations;
             let elapsed = start.elapsed();
+            let cpu = clocks.cpu();
             self.metadata.render_seconds = earlier_seconds + elapsed.as_secs_f64();
+            self.metadata.cpu_seconds = earlier_cpu.zip(cpu).map(|(e, c)| e + c.as_secs_f64());
             // Errors at every power-of-two iteration (even spacing on the log-log convergence
             // charts) and otherwise at most once a second: measuring a large image costs.
             let mut rmse = None;
             let due = last_error.is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
             if self.tracker.is_some() && (due || self.film.iterations.is_power_of_two()) {
-                rmse = record_error(&self.tracker, &self.film, &mut self.metadata);
+                rmse = record_error(&mut self.tracker, &self.film, &mut self.metadata, false);
                 last_error = Some(Instant::now());
             }
             let seconds = elapsed.as_secs_f64().max(1e-9);
@@ -261,6 +358,7 @@ impl RenderJob<'_> {
                     / seconds,
                 rays_per_second: rays as f64 / seconds,
                 rmse,
+                cpu,
                 // The integrator is this run's, so its totals are the run's.
                 counters: integrator.counters(),
             };
@@ -281,9 +379,8 @@ impl RenderJob<'_> {
             }
             progress = Some(now);
         }
-        let recorded = self.metadata.errors.last().map(|e| e.iterations);
-        if iterations_here > 0 && recorded != Some(self.film.iterations) {
-            record_error(&self.tracker, &self.film, &mut self.metadata);
+        if iterations_here > 0 {
+            record_error(&mut self.tracker, &self.film, &mut self.metadata, true);
         }
         // No iteration in this run: no work to give a rate of.
         let elapsed = progress.as_ref().map_or(Duration::ZERO, |p| p.elapsed);

@@ -476,7 +476,7 @@ fn the_preview_closes_its_port_when_dropped() {
     let mut job = setup.job(&scene).unwrap();
     let stop = StopAfter {
         iterations: Some(4),
-        time: None,
+        ..StopAfter::default()
     };
     let mut preview = vmerge::preview::LivePreview::start(
         vmerge::preview::DEFAULT_ADDRESS.parse().unwrap(),

@@ -176,7 +176,7 @@ fn upg_counters_reach_the_progress_and_the_metadata() {
         let mut job = setup.job(&scene).unwrap();
         let stop = StopAfter {
             iterations: Some(2),
-            time: None,
+            ..StopAfter::default()
         };
         let mut last = None::<Progress>;
         job.run(stop, &StopFlag::default(), |event| {

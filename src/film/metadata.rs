@@ -1,11 +1,12 @@
 //! What vmerge records about a render next to its pixels: the technique and every option, the
-//! scene and its hash, the seed, iterations, time, dropped samples, statistics and the error
+//! scene and its hash, the seed, iterations, wall and CPU time, dropped samples, statistics and the error
 //! series against a reference (000 sec. 3.4).
 //!
 //! In an EXR each field is one text attribute named `vmerge.<field>` (see [`Metadata::to_attributes`]),
 //! so any EXR header dump shows them one by one. Numbers are decimal text; floats are written in
 //! Rust's shortest form that parses back to the same bits, so a file round-trips exactly.
 
+use crate::metrics::{Errors, Measure};
 use crate::options::{RenderOptions, Technique};
 use std::fmt;
 use thiserror::Error;
@@ -21,11 +22,13 @@ pub mod attribute {
     pub const ACCEL: &str = "vmerge.accel";
     pub const ITERATIONS: &str = "vmerge.iterations";
     pub const RENDER_SECONDS: &str = "vmerge.render_seconds";
+    pub const CPU_SECONDS: &str = "vmerge.cpu_seconds";
     pub const DROPPED_SAMPLES: &str = "vmerge.dropped_samples";
     pub const STATISTICS: &str = "vmerge.statistics";
     pub const REFERENCE: &str = "vmerge.reference";
     pub const TRACES: &str = "vmerge.traces";
     pub const ERRORS: &str = "vmerge.errors";
+    pub const ERROR_MEASURES: &str = "vmerge.error_measures";
     /// Every attribute vmerge writes starts with this.
     pub const PREFIX: &str = "vmerge.";
 }
@@ -115,6 +118,38 @@ pub struct ErrorSample {
     pub rmse: f64,
     /// `[mae, rmse]` of each trace window, in the order of [`Metadata::traces`].
     pub traces: Vec<[f64; 2]>,
+    /// The whole image's other measures ([`ErrorSample::OTHERS`]) where they were measured:
+    /// the perceptual ones cost too much for every sample.
+    pub others: Errors,
+}
+
+impl ErrorSample {
+    /// The measures a sample may hold besides MAE and RMSE, in the order of their columns.
+    pub const OTHERS: [Measure; 4] = [
+        Measure::RelativeMse,
+        Measure::LdrFlip,
+        Measure::HdrFlip,
+        Measure::Ssim,
+    ];
+
+    /// The whole image's value of `measure`, if measured.
+    pub fn get(&self, measure: Measure) -> Option<f64> {
+        match measure {
+            Measure::Mae => Some(self.mae),
+            Measure::Rmse => Some(self.rmse),
+            other => self.others.get(other),
+        }
+    }
+
+    /// The value of `measure` in trace window `window` (MAE and RMSE only), if measured.
+    pub fn window(&self, window: usize, measure: Measure) -> Option<f64> {
+        let [mae, rmse] = *self.traces.get(window)?;
+        match measure {
+            Measure::Mae => Some(mae),
+            Measure::Rmse => Some(rmse),
+            _ => None,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -130,7 +165,12 @@ pub struct Metadata {
     /// Name of the ray-query backend (not part of the image).
     pub accel: String,
     pub iterations: u64,
+    /// Wall-clock seconds spent rendering (from the first iteration to the last, every run of
+    /// a continued render added; a merge adds its inputs').
     pub render_seconds: f64,
+    /// CPU seconds spent rendering, all threads together, added up as `render_seconds` is;
+    /// `None` when unknown (a file written before it was recorded, or a continuation of one).
+    pub cpu_seconds: Option<f64>,
     /// Samples dropped for being NaN or infinite.
     pub dropped_samples: u64,
     /// Technique-specific statistics, and `merged_seeds` after a merge.
@@ -152,6 +192,7 @@ impl Metadata {
             accel: accel.to_string(),
             iterations: 0,
             render_seconds: 0.0,
+            cpu_seconds: Some(0.0),
             dropped_samples: 0,
             statistics: Vec::new(),
             reference: None,
@@ -185,7 +226,10 @@ impl Metadata {
     ///   newline and carriage return escaped as `\\`, `\t`, `\n`, `\r`;
     /// - `vmerge.traces`: the windows as `XxYxW`, separated by spaces;
     /// - `vmerge.errors`: one line per sample:
-    ///   `seconds iterations mae rmse` then `mae rmse` of each trace window.
+    ///   `seconds iterations mae rmse`, then `mae rmse` of each trace window, then one column
+    ///   per measure that `vmerge.error_measures` names (`-` where not measured);
+    /// - `vmerge.error_measures`: the names of those last columns ([`ErrorSample::OTHERS`]),
+    ///   present when a sample holds one of them (files without it have none).
     pub fn to_attributes(&self) -> Result<Vec<(&'static str, String)>, MetadataError> {
         use attribute::*;
         let mut out = vec![
@@ -200,6 +244,9 @@ impl Metadata {
             (RENDER_SECONDS, self.render_seconds.to_string()),
             (DROPPED_SAMPLES, self.dropped_samples.to_string()),
         ];
+        if let Some(cpu) = self.cpu_seconds {
+            out.push((CPU_SECONDS, cpu.to_string()));
+        }
         if !self.statistics.is_empty() {
             let lines: Vec<String> = self
                 .statistics
@@ -218,12 +265,16 @@ impl Metadata {
         if !self.errors.is_empty() {
             out.push((ERRORS, self.errors_text()));
         }
+        if self.has_other_measures() {
+            let names: Vec<&str> = ErrorSample::OTHERS.iter().map(|m| m.name()).collect();
+            out.push((ERROR_MEASURES, names.join(" ")));
+        }
         Ok(out)
     }
 
     /// The checks `render` applies to its command line, for a render read back: the options
     /// against [`RenderOptions::validate`], the iterations within
-    /// [`MAX_ITERATIONS`](crate::options::MAX_ITERATIONS), a finite non-negative time.
+    /// [`MAX_ITERATIONS`](crate::options::MAX_ITERATIONS), finite non-negative times.
     pub fn validate(&self) -> Result<(), MetadataError> {
         use attribute::*;
         self.options.validate().map_err(|e| invalid(OPTIONS, e))?;
@@ -243,11 +294,22 @@ impl Metadata {
                 format!("{} is not a finite time >= 0", self.render_seconds),
             ));
         }
+        if let Some(cpu) = self.cpu_seconds.filter(|c| !(c.is_finite() && *c >= 0.0)) {
+            return Err(invalid(
+                CPU_SECONDS,
+                format!("{cpu} is not a finite time >= 0"),
+            ));
+        }
         Ok(())
+    }
+
+    fn has_other_measures(&self) -> bool {
+        self.errors.iter().any(|e| e.others.iter().next().is_some())
     }
 
     fn errors_text(&self) -> String {
         use std::fmt::Write;
+        let others = self.has_other_measures();
         let mut text = String::new();
         for (i, e) in self.errors.iter().enumerate() {
             if i > 0 {
@@ -257,6 +319,12 @@ impl Metadata {
             let _ = write!(text, "{} {} {} {}", e.seconds, e.iterations, e.mae, e.rmse);
             for [mae, rmse] in &e.traces {
                 let _ = write!(text, " {mae} {rmse}");
+            }
+            for m in ErrorSample::OTHERS.iter().filter(|_| others) {
+                let _ = match e.others.get(*m) {
+                    Some(v) => write!(text, " {v}"),
+                    None => write!(text, " -"),
+                };
             }
         }
         text
@@ -298,11 +366,22 @@ impl Metadata {
                 .collect::<Result<_, _>>()?,
             None => Vec::new(),
         };
+        let others: Vec<Measure> = match get(ERROR_MEASURES) {
+            Some(text) => text
+                .split_whitespace()
+                .map(|name| {
+                    Measure::from_name(name)
+                        .filter(|m| ErrorSample::OTHERS.contains(m))
+                        .ok_or_else(|| invalid(ERROR_MEASURES, format!("no measure '{name}'")))
+                })
+                .collect::<Result<_, _>>()?,
+            None => Vec::new(),
+        };
         let errors = match get(ERRORS) {
             Some(text) => text
                 .lines()
                 .enumerate()
-                .map(|(i, line)| parse_error_sample(line, traces.len(), i + 1))
+                .map(|(i, line)| parse_error_sample(line, traces.len(), &others, i + 1))
                 .collect::<Result<_, _>>()?,
             None => Vec::new(),
         };
@@ -314,6 +393,9 @@ impl Metadata {
             accel: required(ACCEL)?,
             iterations: parse_number(ITERATIONS, &required(ITERATIONS)?)?,
             render_seconds: parse_number(RENDER_SECONDS, &required(RENDER_SECONDS)?)?,
+            cpu_seconds: get(CPU_SECONDS)
+                .map(|text| parse_number(CPU_SECONDS, &text))
+                .transpose()?,
             dropped_samples: parse_number(DROPPED_SAMPLES, &required(DROPPED_SAMPLES)?)?,
             statistics,
             reference: get(REFERENCE),
@@ -338,21 +420,31 @@ where
 fn parse_error_sample(
     line: &str,
     traces: usize,
+    others: &[Measure],
     number: usize,
 ) -> Result<ErrorSample, MetadataError> {
     let attribute = attribute::ERRORS;
     let fields: Vec<&str> = line.split_whitespace().collect();
-    if fields.len() != 4 + 2 * traces {
+    let expected = 4 + 2 * traces + others.len();
+    if fields.len() != expected {
         return Err(invalid(
             attribute,
             format!(
-                "line {number} has {} numbers, expected {} (4 + 2 per trace window)",
+                "line {number} has {} numbers, expected {expected} (4 + 2 per trace window + \
+                 {} other measures)",
                 fields.len(),
-                4 + 2 * traces
+                others.len()
             ),
         ));
     }
     let float = |i: usize| parse_number::<f64>(attribute, fields[i]);
+    let mut measured = Errors::default();
+    for (i, m) in others.iter().enumerate() {
+        let field = 4 + 2 * traces + i;
+        if fields[field] != "-" {
+            measured.set(*m, float(field)?);
+        }
+    }
     Ok(ErrorSample {
         seconds: float(0)?,
         iterations: parse_number(attribute, fields[1])?,
@@ -361,6 +453,7 @@ fn parse_error_sample(
         traces: (0..traces)
             .map(|t| Ok([float(4 + 2 * t)?, float(5 + 2 * t)?]))
             .collect::<Result<_, MetadataError>>()?,
+        others: measured,
     })
 }
 
@@ -433,6 +526,7 @@ mod tests {
         let mut m = Metadata::new("/a/scene.toml".into(), "abc123".into(), options, "bvh");
         m.iterations = 12;
         m.render_seconds = 0.1 + 0.2;
+        m.cpu_seconds = Some(0.5 + 1.0 / 3.0);
         m.dropped_samples = 3;
         m.statistics = vec![
             ("photons".into(), "4096".into()),
@@ -447,6 +541,7 @@ mod tests {
                 mae: 5e-324,
                 rmse: 1e300,
                 traces: vec![[0.1, f64::MIN_POSITIVE], [1.0 / 3.0, 2.0 / 3.0]],
+                others: Errors::default(),
             },
             ErrorSample {
                 seconds: 2.5,
@@ -454,6 +549,12 @@ mod tests {
                 mae: 0.0,
                 rmse: -0.0,
                 traces: vec![[7.0, 8.0], [9.0, 10.0]],
+                others: {
+                    let mut e = Errors::default();
+                    e.set(Measure::RelativeMse, 0.25);
+                    e.set(Measure::Ssim, 1.0 - 1e-9);
+                    e
+                },
             },
         ];
         m
@@ -485,12 +586,37 @@ mod tests {
     }
 
     #[test]
+    fn a_file_without_cpu_time_reads_as_unknown() {
+        let mut map: HashMap<&str, String> =
+            sample().to_attributes().unwrap().into_iter().collect();
+        assert!(map.remove(attribute::CPU_SECONDS).is_some());
+        let m = Metadata::from_attributes(|name| map.get(name).cloned()).unwrap();
+        assert_eq!(m.cpu_seconds, None);
+        assert!(!m
+            .to_attributes()
+            .unwrap()
+            .iter()
+            .any(|(n, _)| *n == attribute::CPU_SECONDS));
+    }
+
+    #[test]
     fn errors_are_one_line_per_sample() {
         let map: HashMap<&str, String> = sample().to_attributes().unwrap().into_iter().collect();
         let errors = &map[attribute::ERRORS];
         assert_eq!(errors.lines().count(), 2);
-        assert_eq!(errors.lines().nth(1), Some("2.5 2 0 -0 7 8 9 10"));
+        assert!(errors
+            .lines()
+            .next()
+            .is_some_and(|l| l.ends_with(" - - - -")));
+        assert_eq!(
+            errors.lines().nth(1),
+            Some("2.5 2 0 -0 7 8 9 10 0.25 - - 0.999999999")
+        );
         assert_eq!(map[attribute::TRACES], "32x32x8 1x2x2");
+        assert_eq!(
+            map[attribute::ERROR_MEASURES],
+            "relmse ldr-flip hdr-flip ssim"
+        );
     }
 
     #[test]
@@ -512,10 +638,12 @@ mod tests {
         };
         for (name, value) in [
             (attribute::ITERATIONS, "-1"),
+            (attribute::CPU_SECONDS, "two"),
             (attribute::SEED, "x"),
             (attribute::TECHNIQUE, "pt"),
             (attribute::OPTIONS, "beta = 'two'"),
             (attribute::ERRORS, "1 2 3"),
+            (attribute::ERROR_MEASURES, "mae"),
             (attribute::TRACES, "1x2x0"),
             (attribute::STATISTICS, "no tab"),
         ] {

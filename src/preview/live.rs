@@ -306,6 +306,9 @@ fn info(metadata: &Metadata, stop: StopAfter, width: u32, height: u32) -> Vec<(S
     if let Some(t) = stop.time {
         until.push(format!("{:.0} s", t.as_secs_f64()));
     }
+    if let Some(t) = stop.cpu_time {
+        until.push(format!("{:.0} CPU s", t.as_secs_f64()));
+    }
     rows.push(("stop after".into(), until.join(" or ")));
     if let Some(reference) = &metadata.reference {
         rows.push(("reference".into(), reference.clone()));

@@ -76,6 +76,7 @@ pub fn merge(out: &Path, inputs: &[PathBuf]) -> Result<(), FilmError> {
             });
         }
         metadata.render_seconds += m.render_seconds;
+        metadata.cpu_seconds = metadata.cpu_seconds.zip(m.cpu_seconds).map(|(a, b)| a + b);
         metadata.dropped_samples += m.dropped_samples;
     }
     metadata.iterations = film.iterations;

@@ -4,6 +4,7 @@
 use super::BatchError;
 use crate::film::{Metadata, TraceWindow};
 use crate::options::RenderOptions;
+use crate::render::{iteration_fits, StopAfter};
 use crate::tools::metadata;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -12,6 +13,8 @@ use std::time::Duration;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Budget {
     Time(Duration),
+    /// CPU time, all the render's threads together: equal work for cells that share a machine.
+    CpuTime(Duration),
     Iterations(u64),
 }
 
@@ -20,37 +23,68 @@ impl Budget {
     pub fn split(self, parts: u64) -> Budget {
         match self {
             Budget::Time(t) => Budget::Time(t / parts.max(1) as u32),
+            Budget::CpuTime(t) => Budget::CpuTime(t / parts.max(1) as u32),
             Budget::Iterations(n) => Budget::Iterations(n.div_ceil(parts.max(1))),
         }
     }
 
-    /// What is left after a render of `iterations` and `seconds`; `None` when it is spent. A
-    /// time budget counts as spent within 1% (at least half a second): the render loop stops at
-    /// the first iteration past the limit, and a snapshot can land just short of it.
-    pub fn remaining(self, iterations: u64, seconds: f64) -> Option<Budget> {
+    /// What is left after the render `m` describes; `None` when it is spent, `Some(None)`
+    /// when it cannot be told (a CPU budget and a file without its CPU time). A time budget is
+    /// spent when the render loop would start no further iteration in what is left
+    /// ([`iteration_fits`]), or when at most 1% of it (at least half a second) is left: a
+    /// snapshot can land just short of the end.
+    pub fn remaining(self, m: &Metadata) -> Option<Option<Budget>> {
+        let left_of = |t: Duration, spent: f64, wrap: fn(Duration) -> Budget| {
+            let left = t.as_secs_f64() - spent;
+            let slack = (0.01 * t.as_secs_f64()).max(0.5);
+            (left > slack && iteration_fits(left, spent, m.iterations))
+                .then(|| wrap(Duration::from_secs_f64(left)))
+        };
         match self {
-            Budget::Iterations(n) => (iterations < n).then(|| Budget::Iterations(n - iterations)),
-            Budget::Time(t) => {
-                let left = t.as_secs_f64() - seconds;
-                let slack = (0.01 * t.as_secs_f64()).max(0.5);
-                (left > slack).then(|| Budget::Time(Duration::from_secs_f64(left)))
+            Budget::Iterations(n) => {
+                (m.iterations < n).then(|| Some(Budget::Iterations(n - m.iterations)))
             }
+            Budget::Time(t) => left_of(t, m.render_seconds, Budget::Time).map(Some),
+            Budget::CpuTime(t) => match m.cpu_seconds {
+                Some(cpu) => left_of(t, cpu, Budget::CpuTime).map(Some),
+                None => Some(None),
+            },
         }
     }
 
-    /// The command-line flag: `-n N` or `--time Ts`.
+    /// The command-line flag: `-n N`, `--time Ts` or `--cpu-time Ts`.
     fn flags(self) -> [String; 2] {
         match self {
             Budget::Iterations(n) => ["-n".into(), n.to_string()],
             Budget::Time(t) => ["--time".into(), seconds(t)],
+            Budget::CpuTime(t) => ["--cpu-time".into(), seconds(t)],
         }
     }
 
-    /// `8 it` or `20m`, for status lines.
+    /// `8 it`, `20m` or `20m CPU`, for status lines.
     pub fn describe(self) -> String {
         match self {
             Budget::Iterations(n) => format!("{n} it"),
             Budget::Time(t) => seconds(t),
+            Budget::CpuTime(t) => format!("{} CPU", seconds(t)),
+        }
+    }
+
+    /// The stop conditions of a run with this budget, after `earlier_iterations`.
+    pub fn stop_after(self, earlier_iterations: u64) -> StopAfter {
+        match self {
+            Budget::Iterations(n) => StopAfter {
+                iterations: Some(earlier_iterations + n),
+                ..StopAfter::default()
+            },
+            Budget::Time(t) => StopAfter {
+                time: Some(t),
+                ..StopAfter::default()
+            },
+            Budget::CpuTime(t) => StopAfter {
+                cpu_time: Some(t),
+                ..StopAfter::default()
+            },
         }
     }
 }
@@ -212,14 +246,15 @@ impl Cell {
                 ))
             };
         }
-        match self.budget.remaining(m.iterations, m.render_seconds) {
+        match self.budget.remaining(&m) {
             None => State::Done {
                 metadata: Box::new(m),
             },
-            Some(left) => State::Partial {
+            Some(Some(left)) => State::Partial {
                 metadata: Box::new(m),
                 left,
             },
+            Some(None) => stale("no CPU time recorded to measure its CPU budget by".into()),
         }
     }
 

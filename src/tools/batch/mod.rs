@@ -7,6 +7,8 @@
 //! - `cell.rs`: one cell, its state on disk (done, partial, missing, stale) and its command;
 //! - `run.rs`: status, dry runs, the in-process runner and `--jobs` lines;
 //! - `slurm.rs`: the plan as Slurm array jobs chained by dependencies, submitted and followed;
+//! - `cost.rs`: each cell's cost (iterations, wall and CPU seconds, efficiency), the spread
+//!   over seeds, and the warning when comparable cells got unequal shares of the machine;
 //! - `report.rs`: the static HTML report with thumbnails, tables and charts.
 //!
 //! A cell is idempotent: its file holds its options, reference and trace windows, so a cell
@@ -15,14 +17,18 @@
 //! reference is not there yet waits, and `--jobs` lists only what can run now.
 
 mod cell;
+mod cost;
 mod plan;
 mod report;
 mod run;
 mod slurm;
 
 pub use cell::{Action, Budget, Cell, CellKind, ReferenceSource, State};
+pub use cost::{
+    efficiency, error_columns, CellCost, ShareWarning, Spread, CPU_SHARE_SPREAD, ITERATION_SPREAD,
+};
 pub use plan::{parse_duration, variant_name, Plan};
-pub use report::report;
+pub use report::{report, report_warnings};
 pub use run::{describe as describe_action, dry_run, jobs, run, status, Event, ProgressBar};
 pub use slurm::{
     class as slurm_class, run_one, slurm, slurm_states, slurm_status, stages, submit, submitted,

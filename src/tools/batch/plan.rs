@@ -1,7 +1,7 @@
 //! Reading a plan file (DESIGN.md, "Output") and expanding it into its cells.
 //!
 //! Keys, at the top level (defaults for everything below), in `[[scene]]` and in `[[group]]`:
-//! `budget = "20m"` or `iterations = N` (a cell's budget), `seeds = [..]`, `resolution`,
+//! `budget = "20m"`, `cpu_time = "20m"` or `iterations = N` (a cell's budget), `seeds = [..]`, `resolution`,
 //! `traces = ["XxYxW", ..]`, and any option of [`OPTIONS`] by its field name (`min_path_length =
 //! 3`, `no_vc = true`, ...); a lower level overrides a higher one. Only at the top: `output`,
 //! `threads` (per cell), `snapshot`, `metric`, and a `[slurm]` table (`partition`, `account`,
@@ -9,7 +9,7 @@
 //! `reference`. A group: `techniques`, `radius` (a number, a list or a sweep `{ from, to,
 //! steps, spacing = "log" | "linear" }`), `beta` (a number or a list), `scenes` (names; all when
 //! absent). A reference: a file (`{camera}` stands for the camera's name) or a table
-//! `{ technique = "bpt", budget | iterations, parts = K, seed, options... }`.
+//! `{ technique = "bpt", budget | cpu_time | iterations, parts = K, seed, options... }`.
 
 use super::cell::{Budget, Cell, CellKind, ReferenceSource};
 use super::slurm::SlurmSettings;
@@ -64,6 +64,7 @@ const TOP_KEYS: &[&str] = &[
     "scene",
     "group",
     "budget",
+    "cpu_time",
     "iterations",
     "seeds",
     "resolution",
@@ -75,6 +76,7 @@ const SCENE_KEYS: &[&str] = &[
     "cameras",
     "reference",
     "budget",
+    "cpu_time",
     "iterations",
     "seeds",
     "resolution",
@@ -86,12 +88,20 @@ const GROUP_KEYS: &[&str] = &[
     "beta",
     "scenes",
     "budget",
+    "cpu_time",
     "iterations",
     "seeds",
     "resolution",
     "traces",
 ];
-const REFERENCE_KEYS: &[&str] = &["technique", "budget", "iterations", "parts", "seed"];
+const REFERENCE_KEYS: &[&str] = &[
+    "technique",
+    "budget",
+    "cpu_time",
+    "iterations",
+    "parts",
+    "seed",
+];
 const SLURM_KEYS: &[&str] = &["partition", "account", "time_limit", "mem", "sbatch"];
 
 /// Options a plan gives the cells of a level, by their own keys or by expansion:
@@ -183,19 +193,32 @@ impl Reader<'_> {
     }
 
     fn budget(&self, entry: &str, table: &toml::Table) -> Result<Option<Budget>, BatchError> {
-        match (table.get("budget"), table.get("iterations")) {
-            (Some(_), Some(_)) => Err(self.error(entry, "give budget or iterations, not both")),
-            (Some(b), None) => {
-                let text = self.string(&format!("{entry}: budget"), b)?;
-                parse_duration(&text)
-                    .map(|d| Some(Budget::Time(d)))
-                    .map_err(|e| self.error(&format!("{entry}: budget"), e))
-            }
-            (None, Some(n)) => match self.count(&format!("{entry}: iterations"), n)? {
+        let given: Vec<&str> = ["budget", "cpu_time", "iterations"]
+            .into_iter()
+            .filter(|k| table.contains_key(*k))
+            .collect();
+        if given.len() > 1 {
+            return Err(self.error(
+                entry,
+                format!(
+                    "give one of budget, cpu_time or iterations, not {}",
+                    given.join(" and ")
+                ),
+            ));
+        }
+        let duration = |key: &str, v: &toml::Value| {
+            let entry = format!("{entry}: {key}");
+            let text = self.string(&entry, v)?;
+            parse_duration(&text).map_err(|e| self.error(&entry, e))
+        };
+        match given.first().map(|k| (*k, &table[*k])) {
+            Some(("budget", v)) => Ok(Some(Budget::Time(duration("budget", v)?))),
+            Some(("cpu_time", v)) => Ok(Some(Budget::CpuTime(duration("cpu_time", v)?))),
+            Some((_, n)) => match self.count(&format!("{entry}: iterations"), n)? {
                 0 => Err(self.error(entry, "iterations = 0 renders nothing")),
                 n => Ok(Some(Budget::Iterations(n))),
             },
-            (None, None) => Ok(None),
+            None => Ok(None),
         }
     }
 
@@ -590,8 +613,10 @@ impl Plan {
         let metric = match top.get("metric") {
             Some(v) => {
                 let name = r.string("metric", v)?;
-                Metric::from_name(&name)
-                    .ok_or_else(|| r.error("metric", format!("'{name}': expected mae or rmse")))?
+                Metric::from_name(&name).ok_or_else(|| {
+                    let names: Vec<&str> = Metric::ALL.iter().map(|m| m.name()).collect();
+                    r.error("metric", format!("'{name}': expected {}", names.join(", ")))
+                })?
             }
             None => Metric::Mae,
         };
@@ -941,9 +966,12 @@ impl Plan {
             ..inherited.clone()
         }
         .below(r, &entry, table)?;
-        let budget = settings
-            .budget
-            .ok_or_else(|| r.error(&entry, "needs budget = \"TIME\" or iterations = N"))?;
+        let budget = settings.budget.ok_or_else(|| {
+            r.error(
+                &entry,
+                "needs budget = \"TIME\", cpu_time = \"TIME\" or iterations = N",
+            )
+        })?;
         let parts = match table.get("parts") {
             Some(v) => r.count(&format!("{entry}: parts"), v)?.max(1),
             None => 1,
@@ -1055,9 +1083,12 @@ impl Plan {
                 .collect(),
             None => vec![RenderOptions::DEFAULT.beta],
         };
-        let budget = inherited
-            .budget
-            .ok_or_else(|| r.error(entry, "no budget: set budget or iterations here or above"))?;
+        let budget = inherited.budget.ok_or_else(|| {
+            r.error(
+                entry,
+                "no budget: set budget, cpu_time or iterations here or above",
+            )
+        })?;
         // Counted before any cell is made: the lists multiply. The plan's total is checked
         // after each group, which this bounds.
         let count = techniques

@@ -1,11 +1,15 @@
 //! The report of a plan, from whatever cells exist (000 ch. 4 and Appendix B): per scene and
-//! camera, thumbnails of the reference and of each technique's best cell, tables of the mean
-//! absolute and RMS error per radius and technique with the best radius marked (Table B.1,
-//! Table 4.2), error-against-radius charts (Fig. 4.1) and log-log convergence charts per
-//! technique and trace window; the tables also as CSV, Markdown and LaTeX. A static page with
+//! camera, thumbnails of the reference and of each technique's best cell, a table per error
+//! measure ([`Metric::ALL`]: mean absolute and RMS error as in Table B.1 and Table 4.2, relative
+//! MSE, FLIP, SSIM) per radius and technique with the best radius marked, error-against-radius
+//! charts (Fig. 4.1) and log-log convergence charts per technique and trace window; the tables
+//! also as CSV, Markdown and LaTeX; per cell its iterations, wall and CPU seconds, errors and
+//! efficiency, the spread over seeds, and a warning where comparable cells got unequal shares
+//! of the machine. A static page with
 //! relative links only, so the folder can be copied anywhere and opened without a network.
 
 use super::cell::{CellKind, State};
+use super::cost::{efficiency, share_warnings, spreads, CellCost, ShareWarning};
 use super::{BatchError, Cell, Plan};
 use crate::film::{atomic_write, exr, png, ErrorSample, Metadata};
 use crate::tools::{draw_charts, Chart, ChartSeries, Metric};
@@ -24,6 +28,7 @@ struct Entry<'a> {
 /// The errors of one scene and camera as a radius x technique table: rows by radius (`None`
 /// for the techniques without one), columns by variant, each cell the mean over seeds.
 struct Table {
+    metric: Metric,
     variants: Vec<String>,
     radii: Vec<Option<f32>>,
     /// `values[row][column]`.
@@ -52,7 +57,7 @@ impl Table {
                         let here: Vec<f64> = entries
                             .iter()
                             .filter(|e| e.cell.variant == *v && e.cell.options.radius == *r)
-                            .map(|e| metric.of([e.last.mae, e.last.rmse]))
+                            .filter_map(|e| e.last.get(metric))
                             .collect();
                         (!here.is_empty()).then(|| here.iter().sum::<f64>() / here.len() as f64)
                     })
@@ -60,18 +65,25 @@ impl Table {
             })
             .collect();
         Table {
+            metric,
             variants,
             radii,
             values,
         }
     }
 
-    /// The row of each column's lowest value.
+    /// Whether any cell holds the measure (the perceptual ones are missing from renders made
+    /// before they were measured).
+    fn is_empty(&self) -> bool {
+        self.values.iter().flatten().all(Option::is_none)
+    }
+
+    /// The row of each column's best value: the lowest, the highest for SSIM.
     fn best(&self) -> Vec<Option<usize>> {
         (0..self.variants.len())
             .map(|c| {
                 (0..self.radii.len())
-                    .filter_map(|r| self.values[r][c].map(|v| (r, v)))
+                    .filter_map(|r| self.values[r][c].map(|v| (r, self.metric.as_error(v))))
                     .min_by(|a, b| a.1.total_cmp(&b.1))
                     .map(|(r, _)| r)
             })
@@ -196,6 +208,188 @@ fn table_html(t: &Table, caption: &str) -> String {
     h
 }
 
+/// A field of a [`Grid`].
+enum Field {
+    Text(String),
+    Number(f64),
+    Empty,
+}
+
+impl Field {
+    fn number(v: Option<f64>) -> Field {
+        v.map_or(Field::Empty, Field::Number)
+    }
+
+    /// Exact numbers, for CSV.
+    fn exact(&self) -> String {
+        match self {
+            Field::Text(t) => t.clone(),
+            Field::Number(v) => v.to_string(),
+            Field::Empty => String::new(),
+        }
+    }
+
+    /// Four significant digits, for reading.
+    fn shown(&self) -> String {
+        match self {
+            Field::Text(t) => t.clone(),
+            Field::Number(v) => short(*v),
+            Field::Empty => String::new(),
+        }
+    }
+}
+
+/// A table of text and numbers: the per-cell and per-seed tables.
+struct Grid {
+    header: Vec<String>,
+    rows: Vec<Vec<Field>>,
+}
+
+impl Grid {
+    fn csv(&self) -> String {
+        let mut out = format!("{}\n", self.header.join(","));
+        for row in &self.rows {
+            let fields: Vec<String> = row.iter().map(Field::exact).collect();
+            let _ = writeln!(out, "{}", fields.join(","));
+        }
+        out
+    }
+
+    fn markdown(&self) -> String {
+        let mut out = format!(
+            "| {} |\n|{}\n",
+            self.header.join(" | "),
+            "---|".repeat(self.header.len())
+        );
+        for row in &self.rows {
+            let fields: Vec<String> = row.iter().map(Field::shown).collect();
+            let _ = writeln!(out, "| {} |", fields.join(" | "));
+        }
+        out
+    }
+
+    fn html(&self, caption: &str) -> String {
+        let mut h = format!("<table><caption>{}</caption><tr>", html_escape(caption));
+        for name in &self.header {
+            let _ = write!(h, "<th>{}</th>", html_escape(name));
+        }
+        h.push_str("</tr>\n");
+        for row in &self.rows {
+            h.push_str("<tr>");
+            for field in row {
+                let _ = write!(h, "<td>{}</td>", html_escape(&field.shown()));
+            }
+            h.push_str("</tr>\n");
+        }
+        h.push_str("</table>\n");
+        h
+    }
+
+    /// Writes the grid as `STEM.csv` and `STEM.md` under `dir` and appends it to the page
+    /// with links to them.
+    fn write(
+        &self,
+        dir: &Path,
+        stem: &str,
+        caption: &str,
+        html: &mut String,
+    ) -> Result<(), BatchError> {
+        write_text(&dir.join(format!("{stem}.csv")), &self.csv())?;
+        write_text(&dir.join(format!("{stem}.md")), &self.markdown())?;
+        let _ = writeln!(
+            html,
+            "{}<p>As <a href=\"{stem}.csv\">CSV</a>, <a href=\"{stem}.md\">Markdown</a>.</p>",
+            self.html(caption)
+        );
+        Ok(())
+    }
+}
+
+/// The per-cell table: budget, iterations, wall and CPU seconds, the CPU share, every error
+/// column and the efficiency by `metric` against wall and against CPU time.
+fn cost_grid(costs: &[CellCost], metric: Metric) -> Grid {
+    let mut header: Vec<String> = [
+        "cell",
+        "variant",
+        "radius",
+        "seed",
+        "budget",
+        "iterations",
+        "wall s",
+        "CPU s",
+        "CPU/wall",
+    ]
+    .map(String::from)
+    .to_vec();
+    if let Some(first) = costs.first() {
+        header.extend(first.errors.iter().map(|(name, _)| name.to_string()));
+    }
+    header.push(format!("efficiency 1/({}^2 wall s)", metric.name()));
+    header.push(format!("efficiency 1/({}^2 CPU s)", metric.name()));
+    let rows = costs
+        .iter()
+        .map(|c| {
+            let mut row = vec![
+                Field::Text(if c.partial {
+                    format!("{} (partial)", c.cell.name)
+                } else {
+                    c.cell.name.clone()
+                }),
+                Field::Text(c.cell.variant.clone()),
+                Field::Text(radius_text(c.cell.options.radius)),
+                Field::Text(c.cell.options.seed.to_string()),
+                Field::Text(c.cell.budget.describe()),
+                Field::Text(c.iterations.to_string()),
+                Field::Number(c.wall),
+                Field::number(c.cpu),
+                Field::number(c.cpu_share()),
+            ];
+            row.extend(c.errors.iter().map(|(_, v)| Field::number(*v)));
+            // SSIM as 1 - SSIM: an error that falls to 0.
+            let error = c.error(metric).map(|e| metric.as_error(e));
+            row.push(Field::number(error.and_then(|e| efficiency(e, c.wall))));
+            row.push(Field::number(
+                error.zip(c.cpu).and_then(|(e, cpu)| efficiency(e, cpu)),
+            ));
+            row
+        })
+        .collect();
+    Grid { header, rows }
+}
+
+/// The per-seed table: for each variant and radius, the mean and standard deviation of every
+/// error column over its seeds, and the mean iterations, wall and CPU seconds.
+fn spread_grid(costs: &[CellCost]) -> Grid {
+    let spreads = spreads(costs);
+    let mut header: Vec<String> = ["variant", "radius", "seeds"].map(String::from).to_vec();
+    if let Some(first) = spreads.first() {
+        for (name, _, _) in &first.errors {
+            header.push(format!("{name} mean"));
+            header.push(format!("{name} sd"));
+        }
+    }
+    header.extend(["iterations", "wall s", "CPU s"].map(String::from));
+    let rows = spreads
+        .iter()
+        .map(|s| {
+            let mut row = vec![
+                Field::Text(s.variant.clone()),
+                Field::Text(radius_text(s.radius)),
+                Field::Text(s.seeds.to_string()),
+            ];
+            for (_, mean, sd) in &s.errors {
+                row.push(Field::number(*mean));
+                row.push(Field::number(*sd));
+            }
+            row.push(Field::Number(s.iterations));
+            row.push(Field::Number(s.wall));
+            row.push(Field::number(s.cpu));
+            row
+        })
+        .collect();
+    Grid { header, rows }
+}
+
 fn write_text(path: &Path, text: &str) -> Result<(), BatchError> {
     atomic_write(path, |f| f.write_all(text.as_bytes())).map_err(|e| BatchError::Write {
         file: path.into(),
@@ -228,7 +422,51 @@ figcaption{font-size:0.85em;max-width:192px}\
 table{border-collapse:collapse;margin:0.5em 0 1.5em}\
 td,th{border:1px solid #bbb;padding:0.2em 0.6em;text-align:right}\
 td.best{background:#dfd}caption{text-align:left;font-weight:bold;padding:0.3em 0}\
-img.chart{max-width:100%;width:720px;display:block;margin-bottom:1em}";
+img.chart{max-width:100%;width:720px;display:block;margin-bottom:1em}\
+p.warning{background:#fec;border-left:4px solid #c80;padding:0.3em 0.6em}";
+
+/// The rendered cells of one scene and camera that have an error sample.
+fn view_entries<'a>(
+    plan: &'a Plan,
+    states: &'a [State],
+    scene: &str,
+    camera: &str,
+) -> Vec<Entry<'a>> {
+    plan.cells
+        .iter()
+        .zip(states)
+        .filter(|(c, _)| c.kind == CellKind::Render && c.scene == scene && c.camera == camera)
+        .filter_map(|(cell, state)| {
+            let metadata = state.metadata()?;
+            Some(Entry {
+                cell,
+                metadata,
+                last: metadata.errors.last()?,
+                partial: matches!(state, State::Partial { .. }),
+            })
+        })
+        .collect()
+}
+
+fn costs<'a>(entries: &[Entry<'a>]) -> Vec<CellCost<'a>> {
+    entries
+        .iter()
+        .filter_map(|e| CellCost::new(e.cell, e.metadata, e.partial))
+        .collect()
+}
+
+/// The warnings the report shows: cells meant to be compared that got very different shares
+/// of the machine ([`share_warnings`]), view by view.
+pub fn report_warnings(plan: &Plan) -> Vec<ShareWarning> {
+    let states: Vec<State> = plan.cells.iter().map(|c| c.state(&plan.cells)).collect();
+    plan.views
+        .iter()
+        .flat_map(|(scene, camera)| {
+            let entries = view_entries(plan, &states, scene, camera);
+            share_warnings(&format!("{scene}.{camera}"), &costs(&entries))
+        })
+        .collect()
+}
 
 /// Writes the report of `plan` into `OUTPUT/report/` and returns the path of its index.html.
 pub fn report(plan: &Plan) -> Result<PathBuf, BatchError> {
@@ -262,21 +500,15 @@ pub fn report(plan: &Plan) -> Result<PathBuf, BatchError> {
             "<section id=\"{id}\"><h2>{id}</h2>",
             id = html_escape(&view)
         );
-        let entries: Vec<Entry> = plan
-            .cells
-            .iter()
-            .zip(&states)
-            .filter(|(c, _)| c.kind == CellKind::Render && c.scene == *scene && c.camera == *camera)
-            .filter_map(|(cell, state)| {
-                let metadata = state.metadata()?;
-                Some(Entry {
-                    cell,
-                    metadata,
-                    last: metadata.errors.last()?,
-                    partial: matches!(state, State::Partial { .. }),
-                })
-            })
-            .collect();
+        let entries = view_entries(plan, &states, scene, camera);
+        let costs = costs(&entries);
+        for w in share_warnings(&view, &costs) {
+            let _ = writeln!(
+                html,
+                "<p class=\"warning\">warning: {}</p>",
+                html_escape(&w.to_string())
+            );
+        }
         html.push_str("<div class=\"thumbs\">\n");
         let reference = plan
             .cells
@@ -311,7 +543,10 @@ pub fn report(plan: &Plan) -> Result<PathBuf, BatchError> {
                 .iter()
                 .filter(|e| e.cell.variant == *variant && e.cell.options.radius == radius)
                 .min_by(|a, b| {
-                    let m = |e: &&Entry| plan.metric.of([e.last.mae, e.last.rmse]);
+                    let m = |e: &&Entry| {
+                        let value = e.last.get(plan.metric);
+                        value.map_or(f64::INFINITY, |v| plan.metric.as_error(v))
+                    };
                     m(a).total_cmp(&m(b))
                 })
             else {
@@ -323,16 +558,19 @@ pub fn report(plan: &Plan) -> Result<PathBuf, BatchError> {
             let _ = writeln!(
                 html,
                 "<figure><a href=\"{link}\"><img src=\"{name}\" alt=\"{alt}\"></a><figcaption>\
-                 {alt}{partial}<br>r = {r}<br>{spp} spp, {t:.1} s<br>MAE {mae}<br>RMSE {rmse}\
-                 </figcaption></figure>",
+                 {alt}{partial}<br>r = {r}<br>{spp} spp, {t:.1} s<br>{errors}</figcaption>\
+                 </figure>",
                 link = html_escape(&from_report(&e.cell.output, &plan.output)),
                 alt = html_escape(variant),
                 partial = if e.partial { " (partial)" } else { "" },
                 r = radius_text(radius),
                 spp = e.metadata.iterations,
                 t = e.metadata.render_seconds,
-                mae = short(e.last.mae),
-                rmse = short(e.last.rmse),
+                errors = Metric::ALL
+                    .into_iter()
+                    .filter_map(|m| Some(format!("{} {}", m.label(), short(e.last.get(m)?))))
+                    .collect::<Vec<_>>()
+                    .join("<br>"),
             );
         }
         html.push_str("</div>\n");
@@ -343,6 +581,9 @@ pub fn report(plan: &Plan) -> Result<PathBuf, BatchError> {
         for metric in Metric::ALL {
             if metric != plan.metric {
                 table = Table::new(&entries, metric);
+            }
+            if table.is_empty() {
+                continue;
             }
             let stem = format!("tables/{view}.{}", metric.name());
             let [csv, md, tex] = table_files(&table);
@@ -355,9 +596,32 @@ pub fn report(plan: &Plan) -> Result<PathBuf, BatchError> {
                  <a href=\"{stem}.tex\">LaTeX</a>.</p>",
                 table_html(
                     &table,
-                    &format!("{} per radius (best bold)", metric.label())
+                    &format!("{} per radius (best bold)", metric.label()),
                 ),
             );
+        }
+        cost_grid(&costs, plan.metric).write(
+            &dir,
+            &format!("tables/{view}.cells"),
+            &format!(
+                "Cost per cell (efficiency = 1 / ({}^2 x seconds), higher is better)",
+                plan.metric.name()
+            ),
+            &mut html,
+        )?;
+        if costs.iter().any(|c| {
+            costs.iter().any(|o| {
+                o.cell.variant == c.cell.variant
+                    && o.cell.options.radius == c.cell.options.radius
+                    && o.cell.options.seed != c.cell.options.seed
+            })
+        }) {
+            spread_grid(&costs).write(
+                &dir,
+                &format!("tables/{view}.seeds"),
+                "Spread over seeds (mean and standard deviation)",
+                &mut html,
+            )?;
         }
         write_charts(plan, &dir, &view, &entries, &mut html)?;
         html.push_str("</section>\n");
@@ -384,12 +648,14 @@ fn write_charts(
     }
     let against_radius: Vec<Chart> = Metric::ALL
         .into_iter()
-        .map(|metric| {
-            let table = Table::new(entries, metric);
+        .map(|metric| Table::new(entries, metric))
+        .filter(|table| !table.is_empty())
+        .map(|table| {
+            let metric = table.metric;
             Chart {
-                title: format!("{view}: {} against radius", metric.label()),
+                title: format!("{view}: {} against radius", metric.error_label()),
                 x_label: "radius".into(),
-                y_label: metric.label().into(),
+                y_label: metric.error_label().into(),
                 series: table
                     .variants
                     .iter()
@@ -400,7 +666,9 @@ fn write_charts(
                             .radii
                             .iter()
                             .zip(&table.values)
-                            .filter_map(|(r, row)| Some((f64::from((*r)?), row[c]?)))
+                            .filter_map(|(r, row)| {
+                                Some((f64::from((*r)?), metric.as_error(row[c]?)))
+                            })
                             .collect(),
                     })
                     .filter(|s| !s.points.is_empty())
@@ -431,7 +699,7 @@ fn write_charts(
                     w => format!("{variant}: trace window {}", windows[w - 1]),
                 },
                 x_label: "time [s]".into(),
-                y_label: metric.label().into(),
+                y_label: metric.error_label().into(),
                 series: cells
                     .iter()
                     .filter(|e| e.metadata.traces == windows)
@@ -447,18 +715,20 @@ fn write_charts(
                             .metadata
                             .errors
                             .iter()
-                            .map(|s| {
-                                let errors = if w == 0 {
-                                    [s.mae, s.rmse]
+                            .filter_map(|s| {
+                                let value = if w == 0 {
+                                    s.get(metric)
                                 } else {
-                                    s.traces[w - 1]
+                                    s.window(w - 1, metric)
                                 };
-                                (s.seconds, metric.of(errors))
+                                Some((s.seconds, metric.as_error(value?)))
                             })
                             .collect(),
                     })
                     .collect(),
             })
+            // The trace windows hold MAE and RMSE only.
+            .filter(|c| c.series.iter().any(|s| !s.points.is_empty()))
             .collect();
         let name = format!("charts/{view}.{variant}.convergence.png");
         draw_charts(&dir.join(&name), &charts)?;

@@ -1,10 +1,10 @@
 //! What a plan needs now, and running it: `status`, `--dry-run`, the in-process runner with its
 //! progress bar and `--jobs` command lines (Slurm's array jobs are in `slurm.rs`).
 
-use super::cell::{make_output, Action, Budget, Cell, CellKind, ReferenceSource, State};
+use super::cell::{make_output, Action, Cell, CellKind, ReferenceSource, State};
 use super::{BatchError, Plan};
 use crate::accel::AccelKind;
-use crate::render::{self, NewRender, RenderError, RunEvent, RunWarning, StopAfter, StopFlag};
+use crate::render::{self, NewRender, RenderError, RunEvent, RunWarning, StopFlag};
 use crate::scene::{Scene, Warning};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -57,8 +57,11 @@ pub fn status(plan: &Plan) -> String {
         }] += 1;
         let detail = match state {
             State::Done { metadata } | State::Partial { metadata, .. } => {
+                let cpu = metadata
+                    .cpu_seconds
+                    .map_or(String::new(), |c| format!(", {c:.1} CPU s"));
                 let mut d = format!(
-                    "{} it, {:.1} s of {}",
+                    "{} it, {:.1} s{cpu} of {}",
                     metadata.iterations,
                     metadata.render_seconds,
                     cell.budget.describe()
@@ -266,19 +269,6 @@ fn render_error(cell: &Cell) -> impl Fn(RenderError) -> BatchError + '_ {
     }
 }
 
-fn stop_after(budget: Budget, earlier_iterations: u64) -> StopAfter {
-    match budget {
-        Budget::Iterations(n) => StopAfter {
-            iterations: Some(earlier_iterations + n),
-            time: None,
-        },
-        Budget::Time(t) => StopAfter {
-            iterations: None,
-            time: Some(t),
-        },
-    }
-}
-
 /// Runs every cell that needs it, references first, in this process (on rayon's global pool,
 /// which the caller sizes to the plan's threads): a cell's action, then the cells that waited
 /// for it. Stops after the current iteration when `stop` is raised (the
@@ -375,7 +365,7 @@ pub(super) fn run_cell(
                 return Ok(());
             };
             let mut job = setup.job(scene).map_err(&err)?;
-            job.run(stop_after(cell.budget, 0), stop, &mut iterations(on))
+            job.run(cell.budget.stop_after(0), stop, &mut iterations(on))
                 .map_err(&err)
         }
         Action::Continue(left) => {
@@ -395,7 +385,7 @@ pub(super) fn run_cell(
                 None,
             )
             .map_err(&err)?;
-            job.run(stop_after(*left, earlier), stop, &mut iterations(on))
+            job.run(left.stop_after(earlier), stop, &mut iterations(on))
                 .map_err(&err)
         }
     }

@@ -90,6 +90,8 @@ fn time_limit(plan: &Plan, cells: &[usize]) -> Option<Duration> {
         .map(|&i| match (&plan.cells[i].kind, plan.cells[i].budget) {
             (CellKind::Merge { .. }, _) => Some(Duration::ZERO),
             (_, Budget::Time(t)) => Some(t),
+            // Slurm gives a task its cores alone, so its wall time is at most its CPU time.
+            (_, Budget::CpuTime(t)) => Some(t),
             (_, Budget::Iterations(_)) => None,
         })
         .collect();
