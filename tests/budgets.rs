@@ -107,8 +107,7 @@ fn time_budgets_start_no_iteration_predicted_to_end_past_them() {
         assert_eq!(job.metadata.iterations, n as u64);
         // The loop reads its clock a moment after each report, so more time was left at the
         // report than at the decision, and the mean was lower.
-        for k in 1..n {
-            let t = after[k];
+        for (k, &t) in after.iter().enumerate().take(n).skip(1) {
             assert!(
                 seconds - t >= t / k as f64,
                 "{what}: iteration {} began with {:.3} s left, less than the mean {:.3} s",
