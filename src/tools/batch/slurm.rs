@@ -78,8 +78,8 @@ pub fn stages(plan: &Plan) -> (Vec<Vec<usize>>, usize) {
     (stages, blocked)
 }
 
-/// The time limit of a stage's tasks: the plan's `time_limit`, else the longest time budget
-/// with a fifth more and ten minutes for loading the scene and writing the image. Iteration
+/// The time limit of a stage's tasks: the plan's `time_limit`, else the longest time or CPU
+/// budget with a fifth more and ten minutes for loading the scene and writing the image. Iteration
 /// budgets say nothing about time: a stage with one gets the partition's default limit.
 fn time_limit(plan: &Plan, cells: &[usize]) -> Option<Duration> {
     if let Some(t) = plan.slurm.time_limit {
