@@ -54,10 +54,11 @@ def main():
                 loop, wall = run()
                 times[name][0].append(loop)
                 times[name][1].append(wall)
-    print("| | render loop (s), median | whole call (s), median |")
+    print("| | render loop (s): median [min, max] | whole call (s): median [min, max] |")
     print("|---|---|---|")
     for name, (loop, wall) in times.items():
-        print(f"| {name} | {statistics.median(loop):.4f} | {statistics.median(wall):.4f} |")
+        cells = [f"{statistics.median(t):.3f} [{min(t):.3f}, {max(t):.3f}]" for t in (loop, wall)]
+        print(f"| {name} | {cells[0]} | {cells[1]} |")
     ratio = statistics.median(times["python"][0]) / statistics.median(times["cli"][0])
     print(f"\npython / cli, render loop: {ratio:.3f} ({args.rounds} rounds, interleaved)")
 
