@@ -560,7 +560,7 @@ impl Step {
 
 enum Message {
     Step(Box<Step>),
-    Done(Outcome, Vec<String>),
+    Done(Box<(Outcome, Vec<String>)>),
 }
 
 /// Sends a step every `every` iterations, waiting while the consumer has not taken the last.
@@ -571,7 +571,7 @@ struct Stepper {
 
 impl Observer for Stepper {
     fn after_iteration(&mut self, film: &Film, metadata: &Metadata, progress: &Progress) {
-        if film.iterations % self.every == 0 {
+        if film.iterations.is_multiple_of(self.every) {
             // A consumer that went away stopped the render too; nothing to tell.
             let _ = self.sender.send(Message::Step(Box::new(Step::of(
                 film,
@@ -614,7 +614,8 @@ impl Progressive {
         let mut message = message;
         loop {
             match message {
-                Message::Done(outcome, warnings) => {
+                Message::Done(done) => {
+                    let (outcome, warnings) = *done;
                     self.receiver = None;
                     if let Some(thread) = self.thread.take() {
                         py.detach(|| thread.join())
@@ -775,7 +776,7 @@ pub fn render_progressive<'py>(
                     warnings.push(w.to_string());
                 }
             });
-            let _ = sender.send(Message::Done(outcome, warnings));
+            let _ = sender.send(Message::Done(Box::new((outcome, warnings))));
         })
         .map_err(|e| PyRuntimeError::new_err(format!("starting the render thread: {e}")))?;
     Ok(Progressive {
