@@ -15,6 +15,7 @@ pub mod hashgrid;
 pub mod integrator;
 pub mod light;
 pub mod memory;
+pub mod metrics;
 pub mod options;
 pub mod preview;
 pub mod render;

@@ -42,11 +42,17 @@ enum Command {
         a: PathBuf,
         b: PathBuf,
     },
-    /// Print the mean absolute and RMS error between two images (B the reference).
+    /// Print the error measures of image A against the reference B, one `name value` line
+    /// each: mean absolute and RMS error, relative MSE, LDR-FLIP and HDR-FLIP, SSIM (the last
+    /// three need images of at least 11x11 pixels).
     Errors {
         a: PathBuf,
         b: PathBuf,
-        /// Print the relative MSE, mean of (a - b)^2 / (b^2 + 0.01), instead.
+        /// Print only these measures' values, on one line in the order given (repeatable; `-`
+        /// for one the images are too small for).
+        #[arg(long, value_parser = measure_parser())]
+        measure: Vec<Measure>,
+        /// Print only the relative MSE, mean of (a - b)^2 / (b^2 + 0.01): `--measure relmse`.
         #[arg(long)]
         relative: bool,
     },
@@ -310,13 +316,34 @@ fn run(cli: Cli) -> Result<()> {
         Command::Bake { output, input } => Ok(tools::bake(&output, &input)?),
         Command::Strip { output, input } => Ok(tools::strip(&output, &input)?),
         Command::Diff { output, a, b } => Ok(tools::diff(&output, &a, &b)?),
-        Command::Errors { a, b, relative } => {
+        Command::Errors {
+            a,
+            b,
+            mut measure,
+            relative,
+        } => {
             if relative {
-                println!("{}", tools::relative_mse(&a, &b)?);
-            } else {
-                let (mae, rmse) = tools::errors(&a, &b)?;
-                println!("{mae} {rmse}");
+                measure.push(Measure::RelativeMse);
             }
+            // Scripts asking for pixel-wise measures only need not wait for FLIP.
+            let selection = if !measure.is_empty() && measure.iter().all(|m| m.is_pointwise()) {
+                Selection::Pointwise
+            } else {
+                Selection::All
+            };
+            let errors = tools::errors(&a, &b, selection)?;
+            if measure.is_empty() {
+                for (m, value) in errors.iter() {
+                    println!("{m} {value}");
+                }
+                return Ok(());
+            }
+            // `-` for a measure the images are too small for.
+            let values: Vec<String> = measure
+                .iter()
+                .map(|&m| errors.get(m).map_or("-".into(), |v| v.to_string()))
+                .collect();
+            println!("{}", values.join(" "));
             Ok(())
         }
         Command::Average { input } => {
@@ -580,6 +607,7 @@ fn is_input_error(e: &anyhow::Error) -> bool {
 
 // `vmerge batch`: plans of renders (src/tools/batch).
 
+use vmerge::metrics::{Measure, Selection};
 use vmerge::tools::batch::{self, Plan};
 use vmerge::tools::Metric;
 
@@ -627,6 +655,15 @@ fn warn_blocked(blocked: usize) {
             "{blocked} cells cannot run: their reference file is not there (see batch status)"
         );
     }
+}
+
+fn measure_parser() -> impl TypedValueParser<Value = Measure> {
+    by_name(
+        Measure::ALL,
+        Measure::name,
+        Measure::label,
+        "no such measure",
+    )
 }
 
 fn metric_parser() -> impl TypedValueParser<Value = Metric> {

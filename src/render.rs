@@ -158,15 +158,29 @@ pub struct RenderJob<'a> {
 }
 
 /// Measures the current image against the reference, if any, and records the sample in the
-/// metadata; returns its RMS error.
+/// metadata; returns its RMS error. The `last` sample of a run holds every measure and
+/// replaces one recorded at the same iteration.
 fn record_error(
-    tracker: &Option<ErrorTracker>,
+    tracker: &mut Option<ErrorTracker>,
     film: &Film,
     metadata: &mut Metadata,
+    last: bool,
 ) -> Option<f64> {
-    let sample = tracker
-        .as_ref()?
-        .measure(&film.mean(), metadata.render_seconds, film.iterations);
+    let tracker = tracker.as_mut()?;
+    let (mean, seconds) = (film.mean(), metadata.render_seconds);
+    let sample = if last {
+        tracker.measure_all(&mean, seconds, film.iterations)
+    } else {
+        tracker.measure(&mean, seconds, film.iterations)
+    };
+    if last
+        && metadata
+            .errors
+            .last()
+            .is_some_and(|e| e.iterations == film.iterations)
+    {
+        metadata.errors.pop();
+    }
     let rmse = sample.rmse;
     metadata.errors.push(sample);
     Some(rmse)
@@ -250,7 +264,7 @@ impl RenderJob<'_> {
             let mut rmse = None;
             let due = last_error.is_none_or(|t| t.elapsed() >= Duration::from_secs(1));
             if self.tracker.is_some() && (due || self.film.iterations.is_power_of_two()) {
-                rmse = record_error(&self.tracker, &self.film, &mut self.metadata);
+                rmse = record_error(&mut self.tracker, &self.film, &mut self.metadata, false);
                 last_error = Some(Instant::now());
             }
             let seconds = elapsed.as_secs_f64().max(1e-9);
@@ -281,9 +295,8 @@ impl RenderJob<'_> {
             }
             progress = Some(now);
         }
-        let recorded = self.metadata.errors.last().map(|e| e.iterations);
-        if iterations_here > 0 && recorded != Some(self.film.iterations) {
-            record_error(&self.tracker, &self.film, &mut self.metadata);
+        if iterations_here > 0 {
+            record_error(&mut self.tracker, &self.film, &mut self.metadata, true);
         }
         // No iteration in this run: no work to give a rate of.
         let elapsed = progress.as_ref().map_or(Duration::ZERO, |p| p.elapsed);

@@ -62,6 +62,7 @@ fn metadata() -> Metadata {
             mae: 1.0 / (i as f64 + 0.7),
             rmse: 2.0 / (i as f64 + 0.1),
             traces: vec![[i as f64 * 0.1, i as f64 * 0.2]],
+            others: Default::default(),
         })
         .collect();
     m

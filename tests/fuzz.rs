@@ -179,6 +179,7 @@ fn render_bytes(dir: &Path) -> Vec<u8> {
         mae: 0.1,
         rmse: 0.2,
         traces: vec![[0.3, 0.4]],
+        others: Default::default(),
     }];
     let path = dir.join("seed.exr");
     exr::write_render(&path, &film, &metadata).unwrap();

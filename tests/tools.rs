@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 use vmerge::color::Rgb;
 use vmerge::film::{exr as film_exr, ErrorSample, Film, Image, Metadata, TraceWindow};
+use vmerge::metrics::{Measure, Selection};
 use vmerge::options::RenderOptions;
 use vmerge::options::Technique;
 use vmerge::sampling::Rng;
@@ -51,6 +52,7 @@ fn render(seed: u64, iterations: u64) -> (Film, Metadata) {
             mae: 0.5 / (i as f64).sqrt(),
             rmse: (seed as f64 + 1.0) / (i as f64).sqrt(),
             traces: vec![[0.3 / i as f64, 0.4 / i as f64], [0.1, 0.2 / i as f64]],
+            others: Default::default(),
         })
         .collect();
     (film, m)
@@ -287,22 +289,26 @@ fn diff_errors_and_average_on_a_tiny_pair() {
         vec![Rgb::new(0.5, 1.0, 0.0), Rgb::new(0.5, 1.5, 0.0)]
     );
     // Differences 1, 1, 0, -0.5, 6, 0: sum |d| = 8.5, sum d^2 = 38.25, n = 6.
-    let (mae, rmse) = tools::errors(&a, &b).unwrap();
-    assert_eq!(mae, 8.5 / 6.0);
-    assert_eq!(rmse, (38.25f64 / 6.0).sqrt());
+    let errors = tools::errors(&a, &b, Selection::All).unwrap();
+    assert_eq!(errors.get(Measure::Mae), Some(8.5 / 6.0));
+    assert_eq!(errors.get(Measure::Rmse), Some((38.25f64 / 6.0).sqrt()));
     assert_eq!(tools::average(&a).unwrap(), [1.75, 1.5, 2.0]);
     // d^2 / (b^2 + 0.01) per channel, over 6 channels.
     let terms = [1.0 / 4.01, 1.0 / 0.01, 0.0, 0.25 / 1.01, 36.0 / 16.01, 0.0];
     let expected = terms.iter().sum::<f64>() / 6.0;
-    let relative = tools::relative_mse(&a, &b).unwrap();
+    let relative = errors.get(Measure::RelativeMse).unwrap();
     assert!((relative - expected).abs() < 1e-12 * expected, "{relative}");
-    assert_eq!(tools::relative_mse(&a, &a).unwrap(), 0.0);
+    let same = tools::errors(&a, &a, Selection::All).unwrap();
+    assert_eq!(same.get(Measure::RelativeMse), Some(0.0));
+    // 2x1 pixels: too small for the windows of FLIP and SSIM.
+    assert_eq!(same.get(Measure::Ssim), None);
 
     let wide = write_image(dir.path(), "wide.exr", 4, vec![Rgb::BLACK; 4]);
     for message in [
-        tools::errors(&a, &wide).unwrap_err().to_string(),
+        tools::errors(&a, &wide, Selection::All)
+            .unwrap_err()
+            .to_string(),
         tools::diff(&out, &a, &wide).unwrap_err().to_string(),
-        tools::relative_mse(&a, &wide).unwrap_err().to_string(),
     ] {
         assert!(
             message.contains("wide.exr") && message.contains("a.exr") && message.contains("4x1"),

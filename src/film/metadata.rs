@@ -6,6 +6,7 @@
 //! so any EXR header dump shows them one by one. Numbers are decimal text; floats are written in
 //! Rust's shortest form that parses back to the same bits, so a file round-trips exactly.
 
+use crate::metrics::{Errors, Measure};
 use crate::options::{RenderOptions, Technique};
 use std::fmt;
 use thiserror::Error;
@@ -26,6 +27,7 @@ pub mod attribute {
     pub const REFERENCE: &str = "vmerge.reference";
     pub const TRACES: &str = "vmerge.traces";
     pub const ERRORS: &str = "vmerge.errors";
+    pub const ERROR_MEASURES: &str = "vmerge.error_measures";
     /// Every attribute vmerge writes starts with this.
     pub const PREFIX: &str = "vmerge.";
 }
@@ -115,6 +117,38 @@ pub struct ErrorSample {
     pub rmse: f64,
     /// `[mae, rmse]` of each trace window, in the order of [`Metadata::traces`].
     pub traces: Vec<[f64; 2]>,
+    /// The whole image's other measures ([`ErrorSample::OTHERS`]) where they were measured:
+    /// the perceptual ones cost too much for every sample.
+    pub others: Errors,
+}
+
+impl ErrorSample {
+    /// The measures a sample may hold besides MAE and RMSE, in the order of their columns.
+    pub const OTHERS: [Measure; 4] = [
+        Measure::RelativeMse,
+        Measure::LdrFlip,
+        Measure::HdrFlip,
+        Measure::Ssim,
+    ];
+
+    /// The whole image's value of `measure`, if measured.
+    pub fn get(&self, measure: Measure) -> Option<f64> {
+        match measure {
+            Measure::Mae => Some(self.mae),
+            Measure::Rmse => Some(self.rmse),
+            other => self.others.get(other),
+        }
+    }
+
+    /// The value of `measure` in trace window `window` (MAE and RMSE only), if measured.
+    pub fn window(&self, window: usize, measure: Measure) -> Option<f64> {
+        let [mae, rmse] = *self.traces.get(window)?;
+        match measure {
+            Measure::Mae => Some(mae),
+            Measure::Rmse => Some(rmse),
+            _ => None,
+        }
+    }
 }
 
 #[derive(Clone, Debug, PartialEq)]
@@ -185,7 +219,10 @@ impl Metadata {
     ///   newline and carriage return escaped as `\\`, `\t`, `\n`, `\r`;
     /// - `vmerge.traces`: the windows as `XxYxW`, separated by spaces;
     /// - `vmerge.errors`: one line per sample:
-    ///   `seconds iterations mae rmse` then `mae rmse` of each trace window.
+    ///   `seconds iterations mae rmse`, then `mae rmse` of each trace window, then one column
+    ///   per measure that `vmerge.error_measures` names (`-` where not measured);
+    /// - `vmerge.error_measures`: the names of those last columns ([`ErrorSample::OTHERS`]),
+    ///   present when a sample holds one of them (files without it have none).
     pub fn to_attributes(&self) -> Result<Vec<(&'static str, String)>, MetadataError> {
         use attribute::*;
         let mut out = vec![
@@ -218,6 +255,10 @@ impl Metadata {
         if !self.errors.is_empty() {
             out.push((ERRORS, self.errors_text()));
         }
+        if self.has_other_measures() {
+            let names: Vec<&str> = ErrorSample::OTHERS.iter().map(|m| m.name()).collect();
+            out.push((ERROR_MEASURES, names.join(" ")));
+        }
         Ok(out)
     }
 
@@ -246,8 +287,13 @@ impl Metadata {
         Ok(())
     }
 
+    fn has_other_measures(&self) -> bool {
+        self.errors.iter().any(|e| e.others.iter().next().is_some())
+    }
+
     fn errors_text(&self) -> String {
         use std::fmt::Write;
+        let others = self.has_other_measures();
         let mut text = String::new();
         for (i, e) in self.errors.iter().enumerate() {
             if i > 0 {
@@ -257,6 +303,12 @@ impl Metadata {
             let _ = write!(text, "{} {} {} {}", e.seconds, e.iterations, e.mae, e.rmse);
             for [mae, rmse] in &e.traces {
                 let _ = write!(text, " {mae} {rmse}");
+            }
+            for m in ErrorSample::OTHERS.iter().filter(|_| others) {
+                let _ = match e.others.get(*m) {
+                    Some(v) => write!(text, " {v}"),
+                    None => write!(text, " -"),
+                };
             }
         }
         text
@@ -298,11 +350,22 @@ impl Metadata {
                 .collect::<Result<_, _>>()?,
             None => Vec::new(),
         };
+        let others: Vec<Measure> = match get(ERROR_MEASURES) {
+            Some(text) => text
+                .split_whitespace()
+                .map(|name| {
+                    Measure::from_name(name)
+                        .filter(|m| ErrorSample::OTHERS.contains(m))
+                        .ok_or_else(|| invalid(ERROR_MEASURES, format!("no measure '{name}'")))
+                })
+                .collect::<Result<_, _>>()?,
+            None => Vec::new(),
+        };
         let errors = match get(ERRORS) {
             Some(text) => text
                 .lines()
                 .enumerate()
-                .map(|(i, line)| parse_error_sample(line, traces.len(), i + 1))
+                .map(|(i, line)| parse_error_sample(line, traces.len(), &others, i + 1))
                 .collect::<Result<_, _>>()?,
             None => Vec::new(),
         };
@@ -338,21 +401,31 @@ where
 fn parse_error_sample(
     line: &str,
     traces: usize,
+    others: &[Measure],
     number: usize,
 ) -> Result<ErrorSample, MetadataError> {
     let attribute = attribute::ERRORS;
     let fields: Vec<&str> = line.split_whitespace().collect();
-    if fields.len() != 4 + 2 * traces {
+    let expected = 4 + 2 * traces + others.len();
+    if fields.len() != expected {
         return Err(invalid(
             attribute,
             format!(
-                "line {number} has {} numbers, expected {} (4 + 2 per trace window)",
+                "line {number} has {} numbers, expected {expected} (4 + 2 per trace window + \
+                 {} other measures)",
                 fields.len(),
-                4 + 2 * traces
+                others.len()
             ),
         ));
     }
     let float = |i: usize| parse_number::<f64>(attribute, fields[i]);
+    let mut measured = Errors::default();
+    for (i, m) in others.iter().enumerate() {
+        let field = 4 + 2 * traces + i;
+        if fields[field] != "-" {
+            measured.set(*m, float(field)?);
+        }
+    }
     Ok(ErrorSample {
         seconds: float(0)?,
         iterations: parse_number(attribute, fields[1])?,
@@ -361,6 +434,7 @@ fn parse_error_sample(
         traces: (0..traces)
             .map(|t| Ok([float(4 + 2 * t)?, float(5 + 2 * t)?]))
             .collect::<Result<_, MetadataError>>()?,
+        others: measured,
     })
 }
 
@@ -447,6 +521,7 @@ mod tests {
                 mae: 5e-324,
                 rmse: 1e300,
                 traces: vec![[0.1, f64::MIN_POSITIVE], [1.0 / 3.0, 2.0 / 3.0]],
+                others: Errors::default(),
             },
             ErrorSample {
                 seconds: 2.5,
@@ -454,6 +529,12 @@ mod tests {
                 mae: 0.0,
                 rmse: -0.0,
                 traces: vec![[7.0, 8.0], [9.0, 10.0]],
+                others: {
+                    let mut e = Errors::default();
+                    e.set(Measure::RelativeMse, 0.25);
+                    e.set(Measure::Ssim, 1.0 - 1e-9);
+                    e
+                },
             },
         ];
         m
@@ -489,8 +570,19 @@ mod tests {
         let map: HashMap<&str, String> = sample().to_attributes().unwrap().into_iter().collect();
         let errors = &map[attribute::ERRORS];
         assert_eq!(errors.lines().count(), 2);
-        assert_eq!(errors.lines().nth(1), Some("2.5 2 0 -0 7 8 9 10"));
+        assert!(errors
+            .lines()
+            .next()
+            .is_some_and(|l| l.ends_with(" - - - -")));
+        assert_eq!(
+            errors.lines().nth(1),
+            Some("2.5 2 0 -0 7 8 9 10 0.25 - - 0.999999999")
+        );
         assert_eq!(map[attribute::TRACES], "32x32x8 1x2x2");
+        assert_eq!(
+            map[attribute::ERROR_MEASURES],
+            "relmse ldr-flip hdr-flip ssim"
+        );
     }
 
     #[test]
@@ -516,6 +608,7 @@ mod tests {
             (attribute::TECHNIQUE, "pt"),
             (attribute::OPTIONS, "beta = 'two'"),
             (attribute::ERRORS, "1 2 3"),
+            (attribute::ERROR_MEASURES, "mae"),
             (attribute::TRACES, "1x2x0"),
             (attribute::STATISTICS, "no tab"),
         ] {

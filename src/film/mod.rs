@@ -14,7 +14,7 @@ mod splat;
 pub use atomic::{atomic_write, remove_stale_temporaries};
 pub use exr::{FilmError, Image};
 pub use metadata::{ErrorSample, Metadata, MetadataError, TraceWindow};
-pub use reference::{errors_in, ErrorTracker};
+pub use reference::{ErrorTracker, PERCEPTUAL_SHARE};
 pub use splat::{add_splats, Splats};
 
 /// Sum of all iterations' per-pixel estimates, in f64 so that long renders do not lose

@@ -1,53 +1,25 @@
-//! Errors of an image against a reference (000 sec. 3.4): the mean absolute error and the
-//! root-mean-square error over all pixels and all three channels, for the whole image and for
-//! the trace windows.
+//! Errors of a render against a reference image, for the whole image and the trace windows:
+//! what `--reference` records in the metadata. The measures themselves are
+//! [`crate::metrics`]'s.
 
 use super::{ErrorSample, FilmError, Image, TraceWindow};
 use crate::color::Rgb;
-use rayon::prelude::*;
+use crate::metrics::{self, pointwise, Measure, Selection};
 use std::path::Path;
+use std::time::Instant;
 
-/// `(mae, rmse)` of `a` against `b` over the pixel rectangle `(x0, y0, x1, y1)`, meaning
-/// `[x0, x1) x [y0, y1)`, of images `width` pixels wide:
-///
-/// mae = sum |a - b| / n and rmse = sqrt(sum (a - b)^2 / n), the sums running over the
-/// rectangle's pixels and the channels R, G, B, n = 3 x pixels. An empty rectangle gives 0.
-///
-/// Rows are summed in parallel, then added in row order, so the result does not depend on the
-/// thread count.
-pub fn errors_in(a: &[Rgb], b: &[Rgb], width: u32, rect: (u32, u32, u32, u32)) -> (f64, f64) {
-    let (x0, y0, x1, y1) = rect;
-    let rows: Vec<(f64, f64)> = (y0..y1)
-        .into_par_iter()
-        .map(|y| {
-            let start = y as usize * width as usize;
-            let range = start + x0 as usize..start + x1 as usize;
-            let (mut abs, mut sq) = (0.0f64, 0.0f64);
-            for (p, q) in a[range.clone()].iter().zip(&b[range]) {
-                for (p, q) in p.to_array().into_iter().zip(q.to_array()) {
-                    let d = p as f64 - q as f64;
-                    abs += d.abs();
-                    sq += d * d;
-                }
-            }
-            (abs, sq)
-        })
-        .collect();
-    let (abs, sq) = rows
-        .into_iter()
-        .fold((0.0, 0.0), |(a, s), (ra, rs)| (a + ra, s + rs));
-    let n = 3 * x1.saturating_sub(x0) as usize * y1.saturating_sub(y0) as usize;
-    if n == 0 {
-        return (0.0, 0.0);
-    }
-    (abs / n as f64, (sq / n as f64).sqrt())
-}
+/// The perceptual measures (FLIP, SSIM) of a trace may take at most this share of the render
+/// time so far: HDR-FLIP filters the image once per exposure, several times the cost of an
+/// iteration of a fast technique on a large image.
+pub const PERCEPTUAL_SHARE: f64 = 0.05;
 
 /// Errors of a render's mean image against a reference, for the whole image and for each trace
 /// window: what `--reference` records in the metadata.
 pub struct ErrorTracker {
     reference: Image,
     traces: Vec<TraceWindow>,
+    /// Seconds spent so far on the measures that are not pointwise.
+    perceptual_seconds: f64,
 }
 
 impl ErrorTracker {
@@ -86,7 +58,11 @@ impl ErrorTracker {
                 )));
             }
         }
-        Ok(ErrorTracker { reference, traces })
+        Ok(ErrorTracker {
+            reference,
+            traces,
+            perceptual_seconds: 0.0,
+        })
     }
 
     /// The image errors are measured against.
@@ -95,25 +71,54 @@ impl ErrorTracker {
     }
 
     /// The errors of `mean` (the render's mean image, row-major) after `seconds` and
-    /// `iterations`.
-    pub fn measure(&self, mean: &[Rgb], seconds: f64, iterations: u64) -> ErrorSample {
+    /// `iterations`: the pointwise measures always; the perceptual ones too at power-of-two
+    /// iterations (evenly spaced on log-log convergence charts) while their cost so far stays
+    /// within [`PERCEPTUAL_SHARE`] of `seconds`.
+    pub fn measure(&mut self, mean: &[Rgb], seconds: f64, iterations: u64) -> ErrorSample {
+        let affordable = self.perceptual_seconds <= PERCEPTUAL_SHARE * seconds;
+        let all = iterations.is_power_of_two() && affordable;
+        self.sample(mean, seconds, iterations, all)
+    }
+
+    /// Every measure of `mean`: the last sample of a run.
+    pub fn measure_all(&mut self, mean: &[Rgb], seconds: f64, iterations: u64) -> ErrorSample {
+        self.sample(mean, seconds, iterations, true)
+    }
+
+    fn sample(&mut self, mean: &[Rgb], seconds: f64, iterations: u64, all: bool) -> ErrorSample {
         debug_assert_eq!(mean.len(), self.reference.pixels.len());
         let (w, h) = (self.reference.width, self.reference.height);
-        let (mae, rmse) = errors_in(mean, &self.reference.pixels, w, (0, 0, w, h));
+        let started = Instant::now();
+        let selection = if all {
+            Selection::All
+        } else {
+            Selection::Pointwise
+        };
+        let errors = metrics::measure(mean, &self.reference.pixels, w, h, selection);
+        if all {
+            self.perceptual_seconds += started.elapsed().as_secs_f64();
+        }
         let traces = self
             .traces
             .iter()
             .map(|t| {
-                let (mae, rmse) = errors_in(mean, &self.reference.pixels, w, t.rect(w, h));
-                [mae, rmse]
+                let e = pointwise::errors_in(mean, &self.reference.pixels, w, t.rect(w, h));
+                [Measure::Mae, Measure::Rmse].map(|m| e.get(m).unwrap_or(0.0))
             })
             .collect();
+        let mut others = metrics::Errors::default();
+        for m in ErrorSample::OTHERS {
+            if let Some(v) = errors.get(m) {
+                others.set(m, v);
+            }
+        }
         ErrorSample {
             seconds,
             iterations,
-            mae,
-            rmse,
+            mae: errors.get(Measure::Mae).unwrap_or(0.0),
+            rmse: errors.get(Measure::Rmse).unwrap_or(0.0),
             traces,
+            others,
         }
     }
 }
@@ -135,21 +140,6 @@ mod tests {
     }
 
     #[test]
-    fn errors_match_their_definition() {
-        // a - b = (1, -2, 0) on one pixel of four: sum |d| = 3, sum d^2 = 5, n = 12.
-        let b = image(2, 2, |_, _| Rgb::splat(1.0));
-        let mut a = b.clone();
-        a.pixels[3] = Rgb::new(2.0, -1.0, 1.0);
-        let (mae, rmse) = errors_in(&a.pixels, &b.pixels, 2, (0, 0, 2, 2));
-        assert_eq!(mae, 3.0 / 12.0);
-        assert_eq!(rmse, (5.0f64 / 12.0).sqrt());
-        // The window holding only that pixel: n = 3.
-        let (mae, rmse) = errors_in(&a.pixels, &b.pixels, 2, (1, 1, 2, 2));
-        assert_eq!(mae, 1.0);
-        assert_eq!(rmse, (5.0f64 / 3.0).sqrt());
-    }
-
-    #[test]
     fn tracker_measures_image_and_windows() {
         let reference = image(16, 8, |x, y| Rgb::splat((x + y) as f32));
         let mean = image(16, 8, |x, y| {
@@ -167,29 +157,32 @@ mod tests {
                 half_width: 2,
             },
         ];
-        let tracker = ErrorTracker::new(reference, Path::new("ref.exr"), 16, 8, windows).unwrap();
+        let mut tracker =
+            ErrorTracker::new(reference, Path::new("ref.exr"), 16, 8, windows).unwrap();
         let e = tracker.measure(&mean.pixels, 1.5, 7);
         assert_eq!((e.seconds, e.iterations), (1.5, 7));
         assert_eq!(e.mae, 16.0 / 128.0);
         assert_eq!(e.rmse, (16.0f64 / 128.0).sqrt());
         assert_eq!(e.traces, vec![[1.0, 1.0], [0.0, 0.0]]);
+        assert!(e.get(Measure::RelativeMse).is_some());
+        // 8 pixels high: too small for FLIP and SSIM's windows.
+        let e = tracker.measure_all(&mean.pixels, 1.5, 7);
+        assert!(e.get(Measure::HdrFlip).is_none());
     }
 
     #[test]
-    fn errors_do_not_depend_on_the_thread_count() {
-        let mut rng = crate::sampling::Rng::from_seed(3, 0);
-        let mut noise = |_, _| Rgb::new(rng.next_f32(), rng.next_f32() * 1e3, rng.next_f32());
-        let a = image(64, 64, &mut noise);
-        let b = image(64, 64, &mut noise);
-        let run = |threads| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(threads)
-                .build()
-                .unwrap();
-            let (mae, rmse) = pool.install(|| errors_in(&a.pixels, &b.pixels, 64, (0, 0, 64, 64)));
-            (mae.to_bits(), rmse.to_bits())
-        };
-        assert_eq!(run(1), run(3));
+    fn perceptual_measures_stay_within_their_share() {
+        let reference = image(64, 64, |x, y| Rgb::splat((x * y) as f32 / 64.0));
+        let mut tracker =
+            ErrorTracker::new(reference.clone(), Path::new("r.exr"), 64, 64, vec![]).unwrap();
+        // Iteration 3 is no power of two; iteration 4 at a render time of 0 s cannot afford
+        // them once iteration 1 has spent any time on them.
+        let perceptual = |e: &ErrorSample| e.get(Measure::Ssim).is_some();
+        assert!(perceptual(&tracker.measure(&reference.pixels, 0.0, 1)));
+        assert!(!perceptual(&tracker.measure(&reference.pixels, 1e9, 3)));
+        assert!(!perceptual(&tracker.measure(&reference.pixels, 0.0, 4)));
+        assert!(perceptual(&tracker.measure(&reference.pixels, 1e9, 8)));
+        assert!(perceptual(&tracker.measure_all(&reference.pixels, 0.0, 9)));
     }
 
     #[test]

@@ -1,6 +1,6 @@
 //! Tools that work on rendered files (000 sec. 3.4 and Appendix A), one library call per
 //! `vmerge` subcommand:
-//! - compare: [`average`], [`errors`], [`relative_mse`], [`diff`];
+//! - compare: [`average`], [`errors`] (every error measure), [`diff`];
 //! - merge: [`merge`] renders of one scene made with different seeds;
 //! - convert: [`bake`] to a plain EXR, [`strip`] the error series;
 //! - inspect: [`time`], [`metadata`], [`measurements`], [`traces`];
@@ -19,7 +19,7 @@ mod inspect;
 mod merge;
 mod plot;
 
-pub use compare::{average, diff, errors, relative_mse};
+pub use compare::{average, diff, errors};
 pub use convert::{bake, strip};
 pub use inspect::{measurements, metadata, time, traces};
 pub use merge::{merge, MERGED_SEEDS};

@@ -1,4 +1,4 @@
-//! Convergence charts (000 ch. 4): RMS or mean absolute error against render time, both on
+//! Convergence charts (000 ch. 4): an error measure against render time, both on
 //! log scales, one series per input labelled by technique and radius; and [`draw_charts`], the
 //! same drawing for any log-log data (the batch report's error-against-radius charts). PNG or
 //! SVG by the output's extension.
@@ -35,44 +35,8 @@ fn register_font() -> Result<(), String> {
         .clone()
 }
 
-/// The error a chart shows.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Metric {
-    /// Mean absolute error (the thesis's charts, 000 ch. 4).
-    Mae,
-    Rmse,
-}
-
-impl Metric {
-    pub const ALL: [Metric; 2] = [Metric::Mae, Metric::Rmse];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Metric::Mae => "mae",
-            Metric::Rmse => "rmse",
-        }
-    }
-
-    pub fn from_name(name: &str) -> Option<Metric> {
-        Metric::ALL.into_iter().find(|m| m.name() == name)
-    }
-
-    /// The axis label.
-    pub fn label(self) -> &'static str {
-        match self {
-            Metric::Mae => "mean absolute error",
-            Metric::Rmse => "RMS error",
-        }
-    }
-
-    /// The metric of `[mae, rmse]`.
-    pub fn of(self, [mae, rmse]: [f64; 2]) -> f64 {
-        match self {
-            Metric::Mae => mae,
-            Metric::Rmse => rmse,
-        }
-    }
-}
+/// The error a chart shows: any of the measures, SSIM as 1 - SSIM so that every chart falls.
+pub use crate::metrics::Measure as Metric;
 
 /// One chart of [`draw_charts`]: log-log axes, one line per series.
 #[derive(Clone, Debug)]
@@ -163,21 +127,23 @@ fn load_charts(inputs: &[PathBuf], traces: bool, metric: Metric) -> Result<Vec<C
                 w => format!("trace window {} ({})", w - 1, windows[w - 1]),
             },
             x_label: "time [s]".into(),
-            y_label: metric.label().into(),
+            y_label: metric.error_label().into(),
             series: loaded
                 .iter()
                 .zip(&labels)
                 .map(|((_, m), label)| ChartSeries {
                     label: label.clone(),
+                    // Samples without the measure (the perceptual ones are not taken at
+                    // every sample; windows hold MAE and RMSE only) are left out.
                     points: m
                         .errors
                         .iter()
-                        .map(|e| {
-                            let errors = match chart {
-                                0 => [e.mae, e.rmse],
-                                w => e.traces[w - 1],
+                        .filter_map(|e| {
+                            let value = match chart {
+                                0 => e.get(metric),
+                                w => e.window(w - 1, metric),
                             };
-                            (e.seconds, metric.of(errors))
+                            Some((e.seconds, metric.as_error(value?)))
                         })
                         .collect(),
                 })

@@ -590,8 +590,10 @@ impl Plan {
         let metric = match top.get("metric") {
             Some(v) => {
                 let name = r.string("metric", v)?;
-                Metric::from_name(&name)
-                    .ok_or_else(|| r.error("metric", format!("'{name}': expected mae or rmse")))?
+                Metric::from_name(&name).ok_or_else(|| {
+                    let names: Vec<&str> = Metric::ALL.iter().map(|m| m.name()).collect();
+                    r.error("metric", format!("'{name}': expected {}", names.join(", ")))
+                })?
             }
             None => Metric::Mae,
         };

@@ -1,7 +1,8 @@
 //! The report of a plan, from whatever cells exist (000 ch. 4 and Appendix B): per scene and
-//! camera, thumbnails of the reference and of each technique's best cell, tables of the mean
-//! absolute and RMS error per radius and technique with the best radius marked (Table B.1,
-//! Table 4.2), error-against-radius charts (Fig. 4.1) and log-log convergence charts per
+//! camera, thumbnails of the reference and of each technique's best cell, a table per error
+//! measure ([`Metric::ALL`]: mean absolute and RMS error as in Table B.1 and Table 4.2, relative
+//! MSE, FLIP, SSIM) per radius and technique with the best radius marked, error-against-radius
+//! charts (Fig. 4.1) and log-log convergence charts per
 //! technique and trace window; the tables also as CSV, Markdown and LaTeX. A static page with
 //! relative links only, so the folder can be copied anywhere and opened without a network.
 
@@ -24,6 +25,7 @@ struct Entry<'a> {
 /// The errors of one scene and camera as a radius x technique table: rows by radius (`None`
 /// for the techniques without one), columns by variant, each cell the mean over seeds.
 struct Table {
+    metric: Metric,
     variants: Vec<String>,
     radii: Vec<Option<f32>>,
     /// `values[row][column]`.
@@ -52,7 +54,7 @@ impl Table {
                         let here: Vec<f64> = entries
                             .iter()
                             .filter(|e| e.cell.variant == *v && e.cell.options.radius == *r)
-                            .map(|e| metric.of([e.last.mae, e.last.rmse]))
+                            .filter_map(|e| e.last.get(metric))
                             .collect();
                         (!here.is_empty()).then(|| here.iter().sum::<f64>() / here.len() as f64)
                     })
@@ -60,18 +62,25 @@ impl Table {
             })
             .collect();
         Table {
+            metric,
             variants,
             radii,
             values,
         }
     }
 
-    /// The row of each column's lowest value.
+    /// Whether any cell holds the measure (the perceptual ones are missing from renders made
+    /// before they were measured).
+    fn is_empty(&self) -> bool {
+        self.values.iter().flatten().all(Option::is_none)
+    }
+
+    /// The row of each column's best value: the lowest, the highest for SSIM.
     fn best(&self) -> Vec<Option<usize>> {
         (0..self.variants.len())
             .map(|c| {
                 (0..self.radii.len())
-                    .filter_map(|r| self.values[r][c].map(|v| (r, v)))
+                    .filter_map(|r| self.values[r][c].map(|v| (r, self.metric.as_error(v))))
                     .min_by(|a, b| a.1.total_cmp(&b.1))
                     .map(|(r, _)| r)
             })
@@ -311,7 +320,10 @@ pub fn report(plan: &Plan) -> Result<PathBuf, BatchError> {
                 .iter()
                 .filter(|e| e.cell.variant == *variant && e.cell.options.radius == radius)
                 .min_by(|a, b| {
-                    let m = |e: &&Entry| plan.metric.of([e.last.mae, e.last.rmse]);
+                    let m = |e: &&Entry| {
+                        let value = e.last.get(plan.metric);
+                        value.map_or(f64::INFINITY, |v| plan.metric.as_error(v))
+                    };
                     m(a).total_cmp(&m(b))
                 })
             else {
@@ -323,16 +335,19 @@ pub fn report(plan: &Plan) -> Result<PathBuf, BatchError> {
             let _ = writeln!(
                 html,
                 "<figure><a href=\"{link}\"><img src=\"{name}\" alt=\"{alt}\"></a><figcaption>\
-                 {alt}{partial}<br>r = {r}<br>{spp} spp, {t:.1} s<br>MAE {mae}<br>RMSE {rmse}\
-                 </figcaption></figure>",
+                 {alt}{partial}<br>r = {r}<br>{spp} spp, {t:.1} s<br>{errors}</figcaption>\
+                 </figure>",
                 link = html_escape(&from_report(&e.cell.output, &plan.output)),
                 alt = html_escape(variant),
                 partial = if e.partial { " (partial)" } else { "" },
                 r = radius_text(radius),
                 spp = e.metadata.iterations,
                 t = e.metadata.render_seconds,
-                mae = short(e.last.mae),
-                rmse = short(e.last.rmse),
+                errors = Metric::ALL
+                    .into_iter()
+                    .filter_map(|m| Some(format!("{} {}", m.label(), short(e.last.get(m)?))))
+                    .collect::<Vec<_>>()
+                    .join("<br>"),
             );
         }
         html.push_str("</div>\n");
@@ -343,6 +358,9 @@ pub fn report(plan: &Plan) -> Result<PathBuf, BatchError> {
         for metric in Metric::ALL {
             if metric != plan.metric {
                 table = Table::new(&entries, metric);
+            }
+            if table.is_empty() {
+                continue;
             }
             let stem = format!("tables/{view}.{}", metric.name());
             let [csv, md, tex] = table_files(&table);
@@ -355,7 +373,7 @@ pub fn report(plan: &Plan) -> Result<PathBuf, BatchError> {
                  <a href=\"{stem}.tex\">LaTeX</a>.</p>",
                 table_html(
                     &table,
-                    &format!("{} per radius (best bold)", metric.label())
+                    &format!("{} per radius (best bold)", metric.label()),
                 ),
             );
         }
@@ -384,12 +402,14 @@ fn write_charts(
     }
     let against_radius: Vec<Chart> = Metric::ALL
         .into_iter()
-        .map(|metric| {
-            let table = Table::new(entries, metric);
+        .map(|metric| Table::new(entries, metric))
+        .filter(|table| !table.is_empty())
+        .map(|table| {
+            let metric = table.metric;
             Chart {
-                title: format!("{view}: {} against radius", metric.label()),
+                title: format!("{view}: {} against radius", metric.error_label()),
                 x_label: "radius".into(),
-                y_label: metric.label().into(),
+                y_label: metric.error_label().into(),
                 series: table
                     .variants
                     .iter()
@@ -400,7 +420,9 @@ fn write_charts(
                             .radii
                             .iter()
                             .zip(&table.values)
-                            .filter_map(|(r, row)| Some((f64::from((*r)?), row[c]?)))
+                            .filter_map(|(r, row)| {
+                                Some((f64::from((*r)?), metric.as_error(row[c]?)))
+                            })
                             .collect(),
                     })
                     .filter(|s| !s.points.is_empty())
@@ -431,7 +453,7 @@ fn write_charts(
                     w => format!("{variant}: trace window {}", windows[w - 1]),
                 },
                 x_label: "time [s]".into(),
-                y_label: metric.label().into(),
+                y_label: metric.error_label().into(),
                 series: cells
                     .iter()
                     .filter(|e| e.metadata.traces == windows)
@@ -447,18 +469,20 @@ fn write_charts(
                             .metadata
                             .errors
                             .iter()
-                            .map(|s| {
-                                let errors = if w == 0 {
-                                    [s.mae, s.rmse]
+                            .filter_map(|s| {
+                                let value = if w == 0 {
+                                    s.get(metric)
                                 } else {
-                                    s.traces[w - 1]
+                                    s.window(w - 1, metric)
                                 };
-                                (s.seconds, metric.of(errors))
+                                Some((s.seconds, metric.as_error(value?)))
                             })
                             .collect(),
                     })
                     .collect(),
             })
+            // The trace windows hold MAE and RMSE only.
+            .filter(|c| c.series.iter().any(|s| !s.points.is_empty()))
             .collect();
         let name = format!("charts/{view}.{variant}.convergence.png");
         draw_charts(&dir.join(&name), &charts)?;
