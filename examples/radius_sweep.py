@@ -3,8 +3,8 @@
 
 Renders a reference with bpt, then each technique at a range of merge radii around the scene's
 default, each for the same time budget, measuring the error against the reference as it goes.
-Draws two charts: the final RMS error against the radius, and the error against time at each
-technique's best radius.
+Draws two charts: the final error (RMS by default, any of vmerge's measures with --measure)
+against the radius, and the error against time at each technique's best radius.
 
     python examples/radius_sweep.py                          # the README's figure
     python examples/radius_sweep.py --quick -o sweep.png     # a small, short run (CI)
@@ -19,10 +19,13 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 
 import vmerge  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
+LABELS = {"mae": "mean absolute error", "rmse": "RMS error", "relmse": "relative MSE",
+          "ldr-flip": "LDR-FLIP", "hdr-flip": "HDR-FLIP", "ssim": "1 - SSIM"}
 
 
 def arguments():
@@ -36,6 +39,8 @@ def arguments():
                    help="the radii run from the default / span to the default x span")
     p.add_argument("--techniques", nargs="+", default=["vcm", "upg"])
     p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--measure", default="rmse", choices=vmerge.measure_names(),
+                   help="the error drawn (ssim as 1 - SSIM)")
     p.add_argument("--quick", action="store_true",
                    help="a small, short run: 32x32, 16 reference iterations, 3 radii, 0.3 s each")
     p.add_argument("-o", "--output", type=Path, default=Path("radius_sweep.png"))
@@ -68,28 +73,37 @@ def main():
             for r in radii(scene.default_radius, args.radii, args.span):
                 result = vmerge.render(scene, technique, time=args.time, resolution=size,
                                        seed=args.seed, radius=r, reference=reference)
-                final = vmerge.errors(result, ref)["rmse"]
+                final = as_error(args.measure, vmerge.errors(result, ref)[args.measure])
                 sweep.setdefault(technique, []).append((r, final, result))
                 print(f"{technique} r={r:.4g}: {result.iterations} iterations, "
-                      f"{result.seconds:.2f} s, rmse {final:.4g}")
+                      f"{result.seconds:.2f} s, {args.measure} {final:.4g}")
     draw(args, scene, sweep)
     print(f"wrote {args.output}")
 
 
+def as_error(measure, value):
+    """The value as an error that falls to 0 as the image converges: 1 - SSIM for SSIM."""
+    return 1.0 - value if measure == "ssim" else value
+
+
 def draw(args, scene, sweep):
+    label = LABELS.get(args.measure, args.measure)
     fig, (by_radius, by_time) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
     for technique, cells in sweep.items():
         line, = by_radius.plot([r for r, _, _ in cells], [e for _, e, _ in cells], "o-",
                                label=technique)
         r, e, best = min(cells, key=lambda c: c[1])
         errors = best.errors
-        by_time.plot(errors["seconds"], errors["rmse"], color=line.get_color(),
-                     label=f"{technique}, r = {r:.3g}")
+        # The perceptual measures are recorded at fewer samples than the pixel-wise ones.
+        measured = ~np.isnan(errors[args.measure])
+        by_time.plot(errors["seconds"][measured],
+                     as_error(args.measure, errors[args.measure][measured]),
+                     color=line.get_color(), label=f"{technique}, r = {r:.3g}")
     by_radius.axvline(scene.default_radius, color="gray", lw=0.8, ls=":", label="default radius")
     by_radius.set(xscale="log", yscale="log", xlabel="merge radius (world units)",
-                  ylabel="RMS error after equal time",
+                  ylabel=f"{label} after equal time",
                   title=f"{args.scene.parent.name}: {args.time:g} s per radius")
-    by_time.set(xscale="log", yscale="log", xlabel="render time (s)", ylabel="RMS error",
+    by_time.set(xscale="log", yscale="log", xlabel="render time (s)", ylabel=label,
                 title="at each technique's best radius")
     for ax in (by_radius, by_time):
         ax.grid(True, which="both", alpha=0.3)

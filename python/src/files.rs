@@ -11,6 +11,7 @@ use std::path::PathBuf;
 use std::sync::atomic::Ordering;
 use vmerge::color::Rgb;
 use vmerge::film::{exr, Image};
+use vmerge::metrics::{Measure, Selection};
 use vmerge::render::StopFlag;
 use vmerge::tools::batch::{self, Plan};
 
@@ -106,14 +107,18 @@ fn image_of(py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<(Vec<Rgb>, u32
     Ok((image.pixels, image.width, image.height))
 }
 
-/// The errors of `image` against `reference` (arrays, `Result`s or paths) over all pixels and
-/// channels, as the command line's `vmerge errors` measures them: a dict of `mae` and `rmse`.
+/// The error measures of `image` against `reference` (arrays, `Result`s or paths) over all
+/// pixels and channels, as `vmerge errors` measures them: a dict from each measure's name
+/// (`mae`, `rmse`, `relmse`, `ldr-flip`, `hdr-flip`, `ssim`) to its value. `pointwise` keeps
+/// to the pixel-wise ones (MAE, RMSE, relative MSE), which cost far less than FLIP and SSIM;
+/// those are left out of images too small for their filters.
 #[pyfunction]
-#[pyo3(name = "errors")]
+#[pyo3(name = "errors", signature = (image, reference, pointwise = false))]
 pub fn image_errors<'py>(
     py: Python<'py>,
     image: Bound<'py, PyAny>,
     reference: Bound<'py, PyAny>,
+    pointwise: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let (a, width, height) = image_of(py, &image)?;
     let (b, ref_width, ref_height) = image_of(py, &reference)?;
@@ -122,11 +127,23 @@ pub fn image_errors<'py>(
             "the image is {width}x{height}, the reference {ref_width}x{ref_height}"
         )));
     }
-    let (mae, rmse) = py.detach(|| vmerge::film::errors_in(&a, &b, width, (0, 0, width, height)));
+    let selection = if pointwise {
+        Selection::Pointwise
+    } else {
+        Selection::All
+    };
+    let errors = py.detach(|| vmerge::metrics::measure(&a, &b, width, height, selection));
     let dict = PyDict::new(py);
-    dict.set_item("mae", mae)?;
-    dict.set_item("rmse", rmse)?;
+    for (measure, value) in errors.iter() {
+        dict.set_item(measure.name(), value)?;
+    }
     Ok(dict)
+}
+
+/// The names of the error measures, in the order every output lists them.
+#[pyfunction]
+pub fn measure_names() -> Vec<&'static str> {
+    Measure::ALL.iter().map(|m| m.name()).collect()
 }
 
 /// Runs every cell of a batch plan that needs it, references first, in this process; returns

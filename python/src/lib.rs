@@ -35,6 +35,7 @@ fn _vmerge(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(files::write_image, m)?)?;
     m.add_function(wrap_pyfunction!(files::merge, m)?)?;
     m.add_function(wrap_pyfunction!(files::image_errors, m)?)?;
+    m.add_function(wrap_pyfunction!(files::measure_names, m)?)?;
     m.add_function(wrap_pyfunction!(files::run_batch, m)?)?;
     m.add_function(wrap_pyfunction!(files::batch_report, m)?)?;
     Ok(())

@@ -145,21 +145,31 @@ impl RenderResult {
         statistics_dict(py, &self.metadata.statistics)
     }
 
-    /// The error series against the reference: arrays `seconds`, `iterations`, `mae`, `rmse`,
-    /// and `traces` of shape (samples, windows, 2) holding each window's mae and rmse.
+    /// The error series against the reference: arrays `seconds`, `iterations`, one per measure
+    /// (`mae`, `rmse`, `relmse`, `ldr-flip`, `hdr-flip`, `ssim`; NaN where a sample did not
+    /// measure it), and `traces` of shape (samples, windows, 2) holding each window's mae and
+    /// rmse.
     #[getter]
     fn errors<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let e = &self.metadata.errors;
         let dict = PyDict::new(py);
-        let column =
-            |f: fn(&vmerge::film::ErrorSample) -> f64| -> Vec<f64> { e.iter().map(f).collect() };
-        dict.set_item("seconds", PyArray1::from_vec(py, column(|s| s.seconds)))?;
+        dict.set_item(
+            "seconds",
+            PyArray1::from_vec(py, e.iter().map(|s| s.seconds).collect()),
+        )?;
         dict.set_item(
             "iterations",
             PyArray1::from_vec(py, e.iter().map(|s| s.iterations).collect()),
         )?;
-        dict.set_item("mae", PyArray1::from_vec(py, column(|s| s.mae)))?;
-        dict.set_item("rmse", PyArray1::from_vec(py, column(|s| s.rmse)))?;
+        // Every measure a sample may hold, NaN where it was not measured (the perceptual
+        // ones are measured at fewer samples than the pixel-wise ones).
+        for measure in vmerge::metrics::Measure::ALL {
+            let values: Vec<f64> = e
+                .iter()
+                .map(|s| s.get(measure).unwrap_or(f64::NAN))
+                .collect();
+            dict.set_item(measure.name(), PyArray1::from_vec(py, values))?;
+        }
         let windows = self.metadata.traces.len();
         let flat: Vec<f64> = e
             .iter()

@@ -245,14 +245,19 @@ def test_written_renders_read_back_exactly(tmp_path, scene):
 
 
 def test_errors_equal_the_command_lines(tmp_path, cli, scene):
-    a = vmerge.render(scene, iterations=1, **SMALL)
-    b = vmerge.render(scene, iterations=2, **dict(SMALL, seed=8))
+    options = dict(resolution=(40, 32), seed=7)
+    a = vmerge.render(scene, iterations=1, **options)
+    b = vmerge.render(scene, iterations=2, **dict(options, seed=8))
     a.write(tmp_path / "a.exr")
     b.write(tmp_path / "b.exr")
-    mae, rmse = map(float, cli("errors", tmp_path / "a.exr", tmp_path / "b.exr").stdout.split())
+    lines = cli("errors", tmp_path / "a.exr", tmp_path / "b.exr").stdout.split("\n")
+    expected = {name: float(value) for name, value in (l.split() for l in lines if l)}
     measured = vmerge.errors(a.image, b)
-    assert measured == {"mae": mae, "rmse": rmse}
+    assert measured == expected
+    assert sorted(measured) == sorted(vmerge.measure_names())
     assert vmerge.errors(tmp_path / "a.exr", b.image.astype(np.float64)) == measured
+    pointwise = vmerge.errors(a, b, pointwise=True)
+    assert pointwise == {k: measured[k] for k in ("mae", "rmse", "relmse")}
     assert math.isclose(measured["mae"], float(np.mean(np.abs(a.image - b.image))), rel_tol=1e-5)
 
 
@@ -267,6 +272,7 @@ def test_a_reference_gives_an_error_series(tmp_path, scene):
     assert errors["traces"].shape == (3, 1, 2)
     assert errors["rmse"][-1] == pytest.approx(
         vmerge.errors(result, reference)["rmse"], rel=1e-12)
+    assert set(vmerge.measure_names()) <= set(errors)
 
 
 def test_a_batch_plan_runs_and_reports(tmp_path):
