@@ -462,7 +462,8 @@ fn render_of(py: Python<'_>, source: &Bound<'_, PyAny>) -> PyResult<(Film, Metad
 
 /// Goes on with a render (a `Result`, or the path of a vmerge EXR) with its scene, options and
 /// seed, from its next iteration: `iterations` more, and/or for `time` more. The scene must
-/// not have changed since, unless `force`. Ctrl-C as in `render`.
+/// not have changed since, unless `force`. Written to `output` when given, never over the
+/// input unless named so. Ctrl-C as in `render`.
 #[pyfunction]
 #[pyo3(signature = (render, *, iterations = None, time = None, output = None, png = false,
     force = false, accel = None, snapshot = None, memory_limit = None))]
