@@ -268,11 +268,14 @@ impl RunArgs<'_> {
         if self.iterations.is_none() && time.is_none() {
             return Err(errors::render(vmerge::render::RenderError::NoStop));
         }
+        // Any budget beyond iterations and time keeps its default: none.
+        #[allow(clippy::needless_update)]
         let stop = StopAfter {
             iterations: self
                 .iterations
                 .map(|n| earlier_iterations.saturating_add(n)),
             time,
+            ..StopAfter::default()
         };
         let (output, scratch) = Prepared::output(self.output)?;
         Ok((stop, snapshot, output, scratch))
