@@ -53,6 +53,7 @@ pub fn render(e: RenderError) -> PyErr {
         RenderError::WrittenElsewhere { .. } | RenderError::Lost { .. } => {
             PyOSError::new_err(e.to_string())
         }
+        RenderError::NoCpuClock => PyRuntimeError::new_err(e.to_string()),
     }
 }
 
