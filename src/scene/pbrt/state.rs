@@ -249,6 +249,21 @@ impl Importer {
         Ok(())
     }
 
+    /// Directives vmerge does not render: participating media (MakeNamedMedium,
+    /// MediumInterface) and default parameters (Attribute). One warning per kind, at the
+    /// first line, counted.
+    pub(super) fn unsupported(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
+        d.params.mark_all_used();
+        let message = match d.name.as_str() {
+            "Attribute" => "Attribute: default parameters are not supported; ignored".to_string(),
+            name => format!(
+                "{name}: participating media are not supported; ignored (light travels as in a vacuum)"
+            ),
+        };
+        self.warn(loc, message);
+        Ok(())
+    }
+
     pub(super) fn set_ctm(&mut self, m: DMat4) {
         if !self.ignore_transforms {
             self.state.ctm = m;
