@@ -301,8 +301,16 @@ fn triangle(p: &SceneParts, t: usize) -> (f32, Vec3) {
     (0.5 * n.length(), n.normalize())
 }
 
+/// The warnings, each as `FILE:LINE: message` with the file's name alone.
 fn warnings(p: &SceneParts) -> Vec<String> {
-    p.warnings.iter().map(Warning::to_string).collect()
+    p.warnings
+        .iter()
+        .map(|w| {
+            let file = w.file.as_ref().and_then(|f| f.file_name()).unwrap();
+            let line = w.line.map(|l| format!(":{l}")).unwrap_or_default();
+            format!("{}{line}: {}", file.to_string_lossy(), w.message)
+        })
+        .collect()
 }
 
 #[test]
