@@ -14,7 +14,7 @@ use crate::light::{Light, SkyDesc};
 use crate::scene::builder::{Builder, Contents};
 use crate::scene::{CameraDesc, FovAxis, RenderDefaults, SceneError, SceneParts, Warning};
 use glam::{DMat4, Vec3};
-use std::collections::{BTreeSet, HashMap, HashSet};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// A place in a scene file: index into `Importer::files`, and the line.
@@ -81,7 +81,8 @@ pub(super) struct Importer {
     pub(super) skipped_shapes: Vec<(Loc, String)>,
     /// The materials of kind `interface`: their shapes are no surface.
     pub(super) interfaces: HashSet<u32>,
-    pub(super) ignored_directives: BTreeSet<String>,
+    /// Directives whose settings vmerge's own replace, each with where it came first.
+    pub(super) ignored_directives: BTreeMap<String, Loc>,
     /// Each distinct warning once: where it came first, and how many times more.
     pub(super) warnings: Vec<(Loc, String, usize)>,
     pub(super) warning_index: HashMap<String, usize>,
@@ -128,7 +129,7 @@ pub fn import(path: &Path, lenient: bool) -> Result<SceneParts, SceneError> {
         shapes: Vec::new(),
         skipped_shapes: Vec::new(),
         interfaces: HashSet::new(),
-        ignored_directives: BTreeSet::new(),
+        ignored_directives: BTreeMap::new(),
         warnings: Vec::new(),
         warning_index: HashMap::new(),
         material_textures: Vec::new(),
@@ -151,10 +152,16 @@ pub fn import(path: &Path, lenient: bool) -> Result<SceneParts, SceneError> {
             "the file has no WorldBegin".to_string(),
         ));
     }
-    if !im.ignored_directives.is_empty() {
-        let names: Vec<_> = im.ignored_directives.iter().cloned().collect();
-        let w = Warning::file(
-            &im.files[0],
+    // One line for them all, at the first of them.
+    if let Some(&first) = im
+        .ignored_directives
+        .values()
+        .min_by_key(|l| (l.file, l.line))
+    {
+        let names: Vec<_> = im.ignored_directives.keys().cloned().collect();
+        let w = Warning::at(
+            &im.files[first.file],
+            first.line,
             format!(
                 "ignored (vmerge's own settings apply): {}",
                 names.join(", ")

@@ -127,7 +127,10 @@ mod tests {
         for (phimax, inner) in [(TAU, 0.0), (TAU, 0.4), (0.75 * TAU, 0.25), (0.01, 0.0)] {
             let m = disk(2.0, inner, 0.5, phimax);
             let exact = 0.5 * phimax * (4.0 - inner * inner);
-            assert!((area(&m) / exact - 1.0).abs() < 1e-6, "disk {phimax} {inner}");
+            assert!(
+                (area(&m) / exact - 1.0).abs() < 1e-6,
+                "disk {phimax} {inner}"
+            );
             for (p, uv) in m.positions.iter().zip(&m.uvs) {
                 let r = Vec3::new(p[0], p[1], 0.0).length() as f64;
                 // v = (radius - r) / (radius - inner) as pbrt defines it.

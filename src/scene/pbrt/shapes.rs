@@ -30,7 +30,9 @@ pub(super) enum MeshSource {
 #[derive(Clone, Debug)]
 pub(super) enum ShapeKind {
     Mesh(Arc<MeshSource>),
-    Sphere { radius: f64 },
+    Sphere {
+        radius: f64,
+    },
     /// A disk or cylinder: its front is pbrt's quadric normal, which flips under
     /// ReverseOrientation and under a transform that swaps handedness.
     Quadric(Arc<PlyMesh>),
@@ -101,10 +103,9 @@ impl Importer {
                 let height = p.float("height", 0.0).map_err(&pe)?;
                 let phimax = self.phimax(loc, "disk", p)?;
                 if !(radius > 0.0 && radius.is_finite()) {
-                    return Err(self.at(
-                        loc,
-                        format!("Shape disk: radius {radius} is not positive"),
-                    ));
+                    return Err(
+                        self.at(loc, format!("Shape disk: radius {radius} is not positive"))
+                    );
                 }
                 if !(0.0..radius).contains(&inner) {
                     return Err(self.at(
@@ -248,10 +249,7 @@ impl Importer {
                     return Err(self.at(loc, format!("Shape plymesh {}: {message}", path.display())))
                 }
                 Err(None) if self.lenient => {
-                    self.skip_shape(
-                        loc,
-                        format!("Shape plymesh: {} is missing", path.display()),
-                    );
+                    self.skip_shape(loc, format!("Shape plymesh: {} is missing", path.display()));
                 }
                 Err(None) => {
                     return Err(self.at(

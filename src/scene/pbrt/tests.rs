@@ -335,7 +335,10 @@ fn disks_and_cylinders_as_pbrt_defines_them() {
         .flat_map(|&t| p.shading.triangle_uvs[t])
         .map(|i| (uvs[i as usize].x, uvs[i as usize].y))
         .unzip();
-    let range = |x: &[f32]| x.iter().fold((1.0f32, 0.0f32), |(a, b), &v| (a.min(v), b.max(v)));
+    let range = |x: &[f32]| {
+        x.iter()
+            .fold((1.0f32, 0.0f32), |(a, b), &v| (a.min(v), b.max(v)))
+    };
     assert_eq!((range(&us), range(&vs)), ((0.0, 1.0), (0.0, 1.0)));
     // The cylinder takes zmin and zmax in either order and faces outwards.
     let cylinder: Vec<usize> = (0..p.geometry.triangles.len())
@@ -361,14 +364,26 @@ fn disks_and_cylinders_as_pbrt_defines_them() {
     assert!(facing("Scale -1 1 1\nReverseOrientation") > 0.999);
     // Bad sizes name the line.
     for (shape, what) in [
-        ("\"disk\" \"float innerradius\" 1", "innerradius 1 is not in [0, radius 1)"),
+        (
+            "\"disk\" \"float innerradius\" 1",
+            "innerradius 1 is not in [0, radius 1)",
+        ),
         ("\"disk\" \"float radius\" 0", "radius 0 is not positive"),
-        ("\"cylinder\" \"float zmin\" 1", "zmin 1 and zmax 1 leave no height"),
-        ("\"cylinder\" \"float phimax\" -5", "phimax -5 is not positive"),
+        (
+            "\"cylinder\" \"float zmin\" 1",
+            "zmin 1 and zmax 1 leave no height",
+        ),
+        (
+            "\"cylinder\" \"float phimax\" -5",
+            "phimax -5 is not positive",
+        ),
     ] {
         let src = format!("WorldBegin\n\nShape {shape}\n");
         let e = error(&[("scene.pbrt", src.as_bytes())]);
-        assert!(e.contains("scene.pbrt:3: Shape ") && e.contains(what), "{e}");
+        assert!(
+            e.contains("scene.pbrt:3: Shape ") && e.contains(what),
+            "{e}"
+        );
     }
 }
 
@@ -384,7 +399,12 @@ fn interface_shapes_are_no_surface() {
     assert_eq!(p.geometry.spheres.len(), 0);
     assert_eq!(p.geometry.triangles.len(), 2);
     let w = warnings(&p);
-    let find = |s: &str| w.iter().filter(|x| x.contains(s)).cloned().collect::<Vec<_>>();
+    let find = |s: &str| {
+        w.iter()
+            .filter(|x| x.contains(s))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
     let dropped = find("'interface' material");
     assert_eq!(dropped.len(), 1, "{w:?}");
     assert!(
@@ -393,13 +413,19 @@ fn interface_shapes_are_no_surface() {
             && dropped[0].ends_with("(1 more like this)"),
         "{w:?}"
     );
-    assert!(find("scene.pbrt:3: MakeNamedMedium: participating media are not supported").len() == 1);
-    assert!(find("scene.pbrt:6: MediumInterface: participating media are not supported").len() == 1);
+    assert!(
+        find("scene.pbrt:3: MakeNamedMedium: participating media are not supported").len() == 1
+    );
+    assert!(
+        find("scene.pbrt:6: MediumInterface: participating media are not supported").len() == 1
+    );
     // Nothing but interfaces: the error says what was there.
     let only = "WorldBegin\nMaterial \"interface\"\nShape \"sphere\"\n";
     let e = error(&[("scene.pbrt", only.as_bytes())]);
     assert!(
-        e.contains("scene.pbrt:3: the scene has no geometry left: Shape with an 'interface' material"),
+        e.contains(
+            "scene.pbrt:3: the scene has no geometry left: Shape with an 'interface' material"
+        ),
         "{e}"
     );
 }
@@ -413,7 +439,12 @@ fn skipped_shapes_are_warned_once_at_their_line() {
     );
     let p = parts(&src);
     let w = warnings(&p);
-    let about = |s: &str| w.iter().filter(|x| x.contains(s)).cloned().collect::<Vec<_>>();
+    let about = |s: &str| {
+        w.iter()
+            .filter(|x| x.contains(s))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
     assert_eq!(
         about("curve"),
         ["scene.pbrt:3: Shape 'curve' not supported; skipped (2 more like this)"],
