@@ -184,13 +184,13 @@ fn disk_twin(radius: f64, inner: f64, height: f64, phimax: f64) -> String {
     )
 }
 
-/// The disk lights of scenes/pbrt-compare/disk-light.pbrt (a whole disk, and a partial annulus
+/// The disk lights of scenes/pbrt-compare/disk-partial.pbrt (a whole disk, and a partial annulus
 /// raised by its height) against the same file with each disk replaced by an explicit mesh of
 /// it: the same image within the noise (tests/common's criterion: a 1% bias is caught), the
 /// disks traced by the Rust BVH and the twin by the default backend.
 #[test]
 fn disk_lights_render_as_their_explicit_twins() {
-    let path = compare_scene("disk-light.pbrt");
+    let path = compare_scene("disk-partial.pbrt");
     let source = std::fs::read_to_string(&path).unwrap();
     let disks = [(0.3, 0.0, 0.0, 360.0), (0.35, 0.15, 0.05, 270.0)];
     let pieces: Vec<&str> = source.split("Shape \"disk\"").collect();
