@@ -245,6 +245,7 @@ impl Prepared {
 struct RunArgs<'py> {
     iterations: Option<u64>,
     time: Option<Bound<'py, PyAny>>,
+    cpu_time: Option<Bound<'py, PyAny>>,
     output: Option<PathBuf>,
     png: bool,
     snapshot: Option<Bound<'py, PyAny>>,
@@ -264,8 +265,10 @@ impl RunArgs<'_> {
     )> {
         let time = duration("time", self.time.as_ref())?;
         let snapshot = duration("snapshot", self.snapshot.as_ref())?;
+        let cpu_time = duration("cpu_time", self.cpu_time.as_ref())?;
         vmerge::options::validate_run(self.iterations, time, snapshot).map_err(errors::option)?;
-        if self.iterations.is_none() && time.is_none() {
+        vmerge::options::validate_cpu_time(cpu_time).map_err(errors::option)?;
+        if self.iterations.is_none() && time.is_none() && cpu_time.is_none() {
             return Err(errors::render(vmerge::render::RenderError::NoStop));
         }
         // Any budget beyond iterations and time keeps its default: none.
@@ -275,6 +278,7 @@ impl RunArgs<'_> {
                 .iterations
                 .map(|n| earlier_iterations.saturating_add(n)),
             time,
+            cpu_time,
             ..StopAfter::default()
         };
         let (output, scratch) = Prepared::output(self.output)?;
@@ -405,14 +409,14 @@ fn execute(py: Python<'_>, prepared: Prepared) -> PyResult<RenderResult> {
     finish(py, outcome, &warnings, interrupt)
 }
 
-/// Renders `scene` with `technique` for `iterations` and/or `time` (seconds, or a text like
+/// Renders `scene` with `technique` for `iterations`, `time` and/or `cpu_time` (seconds, or a text like
 /// `'90s'`), every render option of the command line as a keyword (`radius=0.01`,
 /// `upg_packet=8`, `resolution=(64, 64)`), validated as the command line validates them.
 /// Without `output` nothing stays on disk; with it the render is written there too (and a PNG
 /// preview with `png`). Ctrl-C stops at the end of the current iteration and raises
 /// `Interrupted`, whose `result` is the render so far.
 #[pyfunction]
-#[pyo3(signature = (scene, technique = None, *, iterations = None, time = None, output = None,
+#[pyo3(signature = (scene, technique = None, *, iterations = None, time = None, cpu_time = None, output = None,
     png = false, reference = None, traces = None, snapshot = None, memory_limit = None,
     **options))]
 #[allow(clippy::too_many_arguments)]
@@ -422,6 +426,7 @@ pub fn render<'py>(
     technique: Option<&str>,
     iterations: Option<u64>,
     time: Option<Bound<'py, PyAny>>,
+    cpu_time: Option<Bound<'py, PyAny>>,
     output: Option<PathBuf>,
     png: bool,
     reference: Option<PathBuf>,
@@ -433,6 +438,7 @@ pub fn render<'py>(
     let args = RunArgs {
         iterations,
         time,
+        cpu_time,
         output,
         png,
         snapshot,
@@ -468,7 +474,7 @@ fn render_of(py: Python<'_>, source: &Bound<'_, PyAny>) -> PyResult<(Film, Metad
 /// not have changed since, unless `force`. Written to `output` when given, never over the
 /// input unless named so. Ctrl-C as in `render`.
 #[pyfunction]
-#[pyo3(signature = (render, *, iterations = None, time = None, output = None, png = false,
+#[pyo3(signature = (render, *, iterations = None, time = None, cpu_time = None, output = None, png = false,
     force = false, accel = None, snapshot = None, memory_limit = None))]
 #[allow(clippy::too_many_arguments)]
 pub fn continue_render<'py>(
@@ -476,6 +482,7 @@ pub fn continue_render<'py>(
     render: Bound<'py, PyAny>,
     iterations: Option<u64>,
     time: Option<Bound<'py, PyAny>>,
+    cpu_time: Option<Bound<'py, PyAny>>,
     output: Option<PathBuf>,
     png: bool,
     force: bool,
@@ -489,6 +496,7 @@ pub fn continue_render<'py>(
     let args = RunArgs {
         iterations,
         time,
+        cpu_time,
         output,
         png,
         snapshot,
@@ -723,7 +731,7 @@ impl Drop for Progressive {
 /// thread, one step ahead of the consumer at most. Ctrl-C while waiting for a step stops it
 /// at the end of its iteration and raises `Interrupted` with the render so far.
 #[pyfunction]
-#[pyo3(signature = (scene, technique = None, *, every = 1, iterations = None, time = None,
+#[pyo3(signature = (scene, technique = None, *, every = 1, iterations = None, time = None, cpu_time = None,
     output = None, png = false, reference = None, traces = None, snapshot = None,
     memory_limit = None, **options))]
 #[allow(clippy::too_many_arguments)]
@@ -734,6 +742,7 @@ pub fn render_progressive<'py>(
     every: u64,
     iterations: Option<u64>,
     time: Option<Bound<'py, PyAny>>,
+    cpu_time: Option<Bound<'py, PyAny>>,
     output: Option<PathBuf>,
     png: bool,
     reference: Option<PathBuf>,
@@ -750,6 +759,7 @@ pub fn render_progressive<'py>(
     let args = RunArgs {
         iterations,
         time,
+        cpu_time,
         output,
         png,
         snapshot,

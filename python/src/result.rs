@@ -130,6 +130,7 @@ impl RenderResult {
         dict.set_item("accel", &m.accel)?;
         dict.set_item("iterations", m.iterations)?;
         dict.set_item("render_seconds", m.render_seconds)?;
+        dict.set_item("cpu_seconds", m.cpu_seconds)?;
         dict.set_item("dropped_samples", m.dropped_samples)?;
         dict.set_item("statistics", statistics_dict(py, &m.statistics)?)?;
         dict.set_item("reference", &m.reference)?;

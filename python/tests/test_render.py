@@ -199,10 +199,15 @@ def test_the_progressive_iterators_last_image_equals_a_one_shot_render(scene):
     assert np.array_equal(images[0][1], three.image)
 
 
-def test_a_time_budget_renders_until_it_is_spent(scene):
-    result = vmerge.render(scene, time=0.3, resolution=(16, 16))
+@pytest.mark.parametrize("budget", ["time", "cpu_time"])
+def test_a_time_budget_renders_until_it_is_spent(scene, budget):
+    result = vmerge.render(scene, resolution=(16, 16), **{budget: 0.3})
     assert result.iterations >= 1
-    assert 0.3 <= result.seconds < 5
+    spent = result.seconds if budget == "time" else result.metadata["cpu_seconds"]
+    # No iteration starts that is predicted to end past the budget: the render stops within
+    # about one iteration of it, on either side.
+    mean = spent / result.iterations
+    assert 0.3 - 2 * mean <= spent < 5
 
 
 def test_continue_and_merge_equal_the_command_lines(tmp_path, cli, scene):
