@@ -203,6 +203,9 @@ fn pairs(n: usize, seed: u64, upper: bool) -> Vec<(Vec3, Vec3)> {
         .collect()
 }
 
+/// Values are compared to 1e-3 relative and 1e-5 absolute: near the critical angle 1 - F
+/// turns with infinite slope, and the two sides' microfacet normals, equal but rounded
+/// apart, then give transmissions of order 1e-5 that differ by a few percent.
 #[test]
 fn reverse_pdfs_are_forward_pdfs_seen_from_the_other_side() {
     let kinds = [
@@ -217,7 +220,7 @@ fn reverse_pdfs_are_forward_pdfs_seen_from_the_other_side() {
             for mode in [TransportMode::Radiance, TransportMode::Importance] {
                 let forward = bsdf(kind, wo, mode).eval(wi);
                 let backward = bsdf(kind, wi, mode).eval(wo);
-                let close = |a: f32, b: f32| (a - b).abs() <= 1e-3 * a.abs().max(b.abs()) + 1e-7;
+                let close = |a: f32, b: f32| (a - b).abs() <= 1e-3 * a.abs().max(b.abs()) + 1e-5;
                 assert!(
                     close(forward.rev_pdf_w, backward.pdf_w)
                         && close(forward.pdf_w, backward.rev_pdf_w),
@@ -232,7 +235,7 @@ fn reverse_pdfs_are_forward_pdfs_seen_from_the_other_side() {
 
 #[test]
 fn reflection_is_reciprocal_and_refraction_adjoint() {
-    let close = |a: f32, b: f32| (a - b).abs() <= 2e-4 * a.abs().max(b.abs()) + 1e-7;
+    let close = |a: f32, b: f32| (a - b).abs() <= 2e-4 * a.abs().max(b.abs()) + 1e-5;
     let mut transmitted = 0;
     for kind in [
         gold(0.3, 0.3),
@@ -267,6 +270,8 @@ fn reflection_is_reciprocal_and_refraction_adjoint() {
 /// D(wm) cos(theta_m) dwm = ds dphi / (2 pi) with s = t / (1 + t), t = tan^2(theta_m) / alpha^2
 /// (the distribution's CDF), and f cos_i dwi = D G |wo . wm| / cos_o dwm (Walter et al. 2007),
 /// so the albedo is the mean over (s, phi) of G |wo . wm| / (cos_o cos_m) where wi is above.
+/// The midpoint rule runs in v with s = 1 - (1 - v)^3, which crowds the nodes towards s = 1,
+/// where wi leaves the hemisphere at small alphas.
 fn white_albedo_quadrature(alpha: f64, wo: [f64; 3], n: usize) -> f64 {
     let lambda = |w: [f64; 3]| {
         let t2 = (w[0] * w[0] + w[1] * w[1]) / (w[2] * w[2]);
@@ -275,7 +280,9 @@ fn white_albedo_quadrature(alpha: f64, wo: [f64; 3], n: usize) -> f64 {
     let lambda_o = lambda(wo);
     let mut sum = 0.0;
     for i in 0..n {
-        let s = (i as f64 + 0.5) / n as f64;
+        let v = (i as f64 + 0.5) / n as f64;
+        let s = 1.0 - (1.0 - v).powi(3);
+        let ds = 3.0 * (1.0 - v).powi(2);
         let tan2 = alpha * alpha * s / (1.0 - s);
         let cos_m = 1.0 / (1.0 + tan2).sqrt();
         let sin_m = (1.0 - cos_m * cos_m).sqrt();
@@ -295,7 +302,7 @@ fn white_albedo_quadrature(alpha: f64, wo: [f64; 3], n: usize) -> f64 {
                 continue;
             }
             let g = 1.0 / (1.0 + lambda_o + lambda(wi));
-            sum += g * dot / (wo[2] * cos_m);
+            sum += g * dot / (wo[2] * cos_m) * ds;
         }
     }
     sum / (2 * n * n) as f64
@@ -326,11 +333,12 @@ fn white_rough_conductor_albedo_matches_quadrature() {
             let wo = Vec3::new(angle.to_radians().sin(), 0.0, angle.to_radians().cos());
             let exact =
                 white_albedo_quadrature(alpha as f64, [wo.x as f64, wo.y as f64, wo.z as f64], 600);
-            let (mean, se) = sampled_albedo(&white_conductor(alpha, alpha), wo, 100_000, 5);
-            // Five standard errors plus the quadrature's and f32's error; both far below the 1%
-            // a wrong masking term or pdf would make.
+            let (mean, se) = sampled_albedo(&white_conductor(alpha, alpha), wo, 400_000, 5);
+            // Four standard errors plus the quadrature's and f32's error: a 1% bias from a
+            // wrong masking term or pdf is caught.
+            assert!(4.0 * se < 0.01 * exact, "too noisy: se {se}");
             assert!(
-                (mean - exact).abs() < 5.0 * se + 2e-4,
+                (mean - exact).abs() < 4.0 * se + 2e-4,
                 "alpha {alpha}, {angle} deg: sampled {mean} +- {se}, quadrature {exact}"
             );
             assert!(exact <= 1.0 && exact > 0.3, "{exact}");
@@ -346,7 +354,17 @@ fn furnace_scene(
     look_at: Vec3,
     fov: f32,
 ) -> (tempfile::TempDir, Scene) {
-    let dir = tempfile::tempdir().unwrap();
+    furnace_scene_in(tempfile::tempdir().unwrap(), body, position, look_at, fov)
+}
+
+/// [`furnace_scene`] in the directory `dir`, where the files the scene names are.
+fn furnace_scene_in(
+    dir: tempfile::TempDir,
+    body: &str,
+    position: Vec3,
+    look_at: Vec3,
+    fov: f32,
+) -> (tempfile::TempDir, Scene) {
     let path = dir.path().join("scene.toml");
     let text = format!(
         "[render]\nresolution = [8, 8]\nmax_path_length = 32\n\
@@ -396,13 +414,14 @@ fn white_conductor_furnace_loses_what_the_quadrature_says() {
     }
 }
 
-/// A nearly smooth rough glass sphere (alpha 0.03, where the single-scattering model loses
-/// well under 0.1%) in a uniform environment: radiance is compressed entering and restored
-/// leaving, so every pixel sees 1.
+/// A nearly smooth rough glass sphere in a uniform environment: radiance is compressed
+/// entering and restored leaving, so every pixel sees 1 but for what single-scattering
+/// microfacets lose, about 0.4 alpha here (measured: 0.4% at alpha 0.01, 5% at 0.1); at
+/// alpha 0.003 that is 0.15% at most. A wrong 1/eta^2 would be off by half.
 #[test]
 fn rough_glass_sphere_in_the_furnace_is_invisible() {
     let body = "[[sphere]]\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"frosted\"\n\
-                [material.frosted]\ntype = \"dielectric\"\neta = 1.5\nroughness = 0.03\n\
+                [material.frosted]\ntype = \"dielectric\"\neta = 1.5\nroughness = 0.003\n\
                 remaproughness = false\n";
     let (_dir, scene) = furnace_scene(body, Vec3::new(0.0, 0.3, 3.5), Vec3::ZERO, 30.0);
     let options = common::options(Technique::Pt, 8);
@@ -410,7 +429,7 @@ fn rough_glass_sphere_in_the_furnace_is_invisible() {
     let (mean, se) = (stats.image_mean(), stats.image_se());
     assert!(4.0 * se <= 0.01, "too noisy: se {se}");
     assert!(
-        (mean - 1.0).abs() <= 4.0 * se + 1e-3,
+        (mean - 1.0).abs() <= 4.0 * se + 1.5e-3,
         "furnace {mean} (se {se})"
     );
 }
@@ -439,4 +458,51 @@ fn every_technique_renders_the_microfacet_scene_alike() {
             common::assert_agree(&label, &stats, &pt);
         }
     }
+}
+
+/// A `roughness_texture` drives the roughness where it is sampled: a conductor smooth by its
+/// constant (a delta lobe) is rough where its texture says 0.3, on both axes.
+#[test]
+fn a_texture_gives_the_roughness() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut pfm = b"Pf\n2 2\n-1.0\n".to_vec();
+    for _ in 0..4 {
+        pfm.extend_from_slice(&0.3f32.to_le_bytes());
+    }
+    std::fs::write(dir.path().join("rough.pfm"), pfm).unwrap();
+    let body = "[[sphere]]\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"metal\"\n\
+                [material.metal]\ntype = \"conductor\"\nreflectance = [0.9, 0.9, 0.9]\n\
+                roughness_texture = \"rough.pfm\"\n";
+    let (scene_dir, scene) =
+        furnace_scene_in(dir, body, Vec3::new(0.0, 0.0, 3.0), Vec3::ZERO, 30.0);
+    let material = scene
+        .materials
+        .iter()
+        .position(|m| m.name == "metal")
+        .unwrap() as u32;
+    assert!(scene.material(material).kind.is_delta());
+    let albedo = scene.albedo(material, glam::Vec2::new(0.5, 0.5));
+    assert_eq!(albedo.roughness, Some(0.3));
+    let normals = vmerge::bsdf::Normals::flat(Vec3::Z);
+    let b = scene
+        .bsdf(
+            material,
+            normals,
+            glam::Vec2::new(0.5, 0.5),
+            Vec3::Z,
+            TransportMode::Radiance,
+        )
+        .unwrap();
+    assert!(!b.is_delta());
+    let reference = MaterialKind::from_params(
+        "conductor",
+        &vmerge::bsdf::Params::new()
+            .with_color("reflectance", Rgb::splat(0.9))
+            .with_number("roughness", 0.3),
+    )
+    .unwrap();
+    let wi = Vec3::new(0.3, 0.1, 0.9).normalize();
+    let expected = bsdf(&reference, Vec3::Z, TransportMode::Radiance).eval(wi);
+    assert_eq!(b.eval(wi), expected);
+    drop(scene_dir);
 }
