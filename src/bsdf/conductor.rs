@@ -50,7 +50,7 @@ impl Conductor {
         }
         let wm = (wo + wi).normalize();
         let cos_om = wo.dot(wm);
-        if !(cos_om > 0.0) {
+        if cos_om <= 0.0 {
             return BsdfEval::ZERO;
         }
         let d = m.d(wm);

@@ -54,7 +54,7 @@ impl Dielectric {
         };
         let wm = wi * etap + wo;
         let len2 = wm.length_squared();
-        if !(len2 > 0.0) {
+        if len2 <= 0.0 {
             return None;
         }
         let wm = wm / len2.sqrt();
