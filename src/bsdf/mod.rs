@@ -1,4 +1,5 @@
-//! BSDFs: lambert, energy-conserving Phong (000 eq. 3.1), mirror and glass.
+//! BSDFs: lambert, energy-conserving Phong (000 eq. 3.1), mirror and glass, and pbrt-v4's
+//! conductor, dielectric and thin dielectric on Trowbridge-Reitz microfacets.
 //!
 //! A [`Bsdf`] is built at one path vertex for one fixed direction `wo` (pointing back along the
 //! path the walk came from) and answers, for another direction `wi`, the value, the forward pdf
@@ -42,13 +43,16 @@ use crate::frame::Frame;
 use glam::Vec3;
 
 mod bxdf;
+pub mod fresnel;
 mod lobe;
+pub mod microfacet;
 mod params;
 #[macro_use]
 mod registry;
 
 pub use bxdf::{Bxdf, BxdfType};
 pub use lobe::{Lobe, LobeShape, Lobes, PolarBound, PolarInterval};
+use microfacet::Roughness;
 pub use params::{
     BsdfError, EnergyExcess, EnergyFix, ParamKind, ParamProblem, ParamRange, ParamReader,
     ParamSpec, ParamValue, Params,
@@ -61,6 +65,11 @@ registry! {
     phong::Phong { kd: Rgb, ks: Rgb, exponent: f32 },
     mirror::Mirror { ks: Rgb },
     glass::Glass { ior: f32 },
+    /// pbrt-v4's conductor: complex Fresnel on Trowbridge-Reitz microfacets.
+    conductor::Conductor { eta: Rgb, k: Rgb, roughness: Roughness },
+    /// pbrt-v4's dielectric: Walter et al. 2007 on Trowbridge-Reitz microfacets, glass when smooth.
+    dielectric::Dielectric { eta: f32, roughness: Roughness },
+    thin_dielectric::ThinDielectric { eta: f32 },
 }
 
 /// A named material: how it scatters and what it emits (radiance, one-sided, on the side the
@@ -115,6 +124,10 @@ pub struct Albedo {
     pub kd: Rgb,
     /// Phong's ks, the mirror's reflectance (unused by lambert and glass).
     pub ks: Rgb,
+    /// A microfacet type's roughness on both axes, where a texture gives it (in the type's
+    /// own units: remapped to alpha when its `remaproughness` says so); `None` keeps the
+    /// type's own.
+    pub roughness: Option<f32>,
 }
 
 impl Albedo {

@@ -1,7 +1,8 @@
-//! pbrt-v4's materials mapped onto vmerge's four BSDFs (the table in docs/pbrt.md, "Materials"): the Material,
+//! pbrt-v4's materials mapped onto vmerge's BSDFs (the table in docs/pbrt.md, "Materials"): the Material,
 //! MakeNamedMaterial and NamedMaterial directives, the mapping of each material type, and its
 //! arithmetic (Fresnel reflectance at normal incidence, roughness to a Phong exponent, the RGB
-//! values of pbrt's named metal spectra). The mapping conserves energy for reflectances up to
+//! values of pbrt's named metal spectra). Conductors, dielectrics and thin dielectrics are
+//! vmerge's own types of the same names. The mapping conserves energy for reflectances up to
 //! 1 (a coated diffuse's kd = reflectance x (1 - F0) beside ks = F0); the builder's rule
 //! handles what a file states beyond that.
 
@@ -37,13 +38,6 @@ pub fn phong_exponent(alpha: f32) -> f32 {
 pub fn dielectric_f0(eta: f32) -> f32 {
     let r = (eta - 1.0) / (eta + 1.0);
     r * r
-}
-
-/// Reflectance at normal incidence of a conductor, per channel:
-/// ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2).
-pub fn conductor_f0(eta: Rgb, k: Rgb) -> Rgb {
-    let f = |n: f32, k: f32| ((n - 1.0).powi(2) + k * k) / ((n + 1.0).powi(2) + k * k);
-    Rgb::new(f(eta.r, k.r), f(eta.g, k.g), f(eta.b, k.b))
 }
 
 /// RGB values of pbrt's named metal spectra (`"metal-Au-eta"`, ...): the spectra averaged
@@ -157,6 +151,29 @@ impl Importer {
         })
     }
 
+    /// A microfacet material's `roughness`, `uroughness`, `vroughness` and `remaproughness`
+    /// as the parameters of vmerge's microfacet types (which read them the same way).
+    pub(super) fn roughness_params(
+        &mut self,
+        loc: Loc,
+        p: &ParamList,
+    ) -> Result<Params, SceneError> {
+        let r = self.float_param(loc, p, "roughness", 0.0)?;
+        let u = self.float_param(loc, p, "uroughness", 0.0)?;
+        let v = self.float_param(loc, p, "vroughness", 0.0)?;
+        let (u, v) = (u.or(r).unwrap_or(0.0), v.or(r).unwrap_or(0.0));
+        for x in [u, v] {
+            if !(x >= 0.0 && x.is_finite()) {
+                return Err(self.at(loc, format!("roughness {x} is negative")));
+            }
+        }
+        let remap = p.bool("remaproughness", true).map_err(self.pe(loc.file))?;
+        Ok(Params::new()
+            .with_number("uroughness", u)
+            .with_number("vroughness", v)
+            .with_number("remaproughness", if remap { 1.0 } else { 0.0 }))
+    }
+
     /// Maps a pbrt material onto vmerge's BSDFs (docs/pbrt.md, "Materials"); one warning per
     /// material that is approximated.
     pub(super) fn material(
@@ -199,25 +216,17 @@ impl Importer {
                 phong(reflectance * (1.0 - f0), Rgb::splat(f0), exponent)
             }
             "conductor" => {
-                let alpha = self.alpha(loc, p)?;
-                let f0 = if p.params.iter().any(|q| q.name == "reflectance") {
-                    self.constant_spectrum(loc, p, "reflectance", Rgb::WHITE)?
+                let params = self.roughness_params(loc, p)?;
+                let params = if p.params.iter().any(|q| q.name == "reflectance") {
+                    let r = self.constant_spectrum(loc, p, "reflectance", Rgb::WHITE)?;
+                    params.with_color("reflectance", r)
                 } else {
                     let cu = |n| named_spectrum(n).unwrap_or(Rgb::WHITE);
                     let eta = self.constant_spectrum(loc, p, "eta", cu("metal-Cu-eta"))?;
                     let k = self.constant_spectrum(loc, p, "k", cu("metal-Cu-k"))?;
-                    conductor_f0(eta, k)
+                    params.with_color("eta", eta).with_color("k", k)
                 };
-                if alpha == 0.0 {
-                    mirror(f0)
-                } else {
-                    let exponent = phong_exponent(alpha);
-                    notes.push(format!(
-                        "rough conductor as Phong: ks = F0 = {:?}, exponent {exponent:.0} from alpha {alpha}",
-                        round3(f0)
-                    ));
-                    phong(Rgb::BLACK, f0, exponent)
-                }
+                ("conductor", params)
             }
             "dielectric" | "thindielectric" => {
                 let eta_type = p.params.iter().find(|q| q.name == "eta").map(|q| q.ty);
@@ -249,13 +258,19 @@ impl Importer {
                 if eta.is_nan() || eta <= 0.0 {
                     return Err(self.at(loc, format!("dielectric eta {eta} is not positive")));
                 }
-                if self.alpha(loc, p)? > 0.0 {
-                    notes.push("rough dielectric as smooth glass".into());
-                }
                 if ty == "thindielectric" {
-                    notes.push("thindielectric as glass".into());
+                    ("thindielectric", Params::new().with_number("eta", eta))
+                } else {
+                    let params = self.roughness_params(loc, p)?;
+                    let rough = MaterialKind::from_params("dielectric", &params)
+                        .is_ok_and(|kind| !kind.is_delta());
+                    if rough {
+                        ("dielectric", params.with_number("eta", eta))
+                    } else {
+                        // The smooth interface is glass itself.
+                        glass(eta)
+                    }
                 }
-                glass(eta)
             }
             "diffusetransmission" => {
                 let reflectance = albedo(self, "reflectance", Rgb::splat(0.25))?;
@@ -428,10 +443,6 @@ fn phong(kd: Rgb, ks: Rgb, exponent: f32) -> (&'static str, Params) {
     ("phong", params)
 }
 
-fn mirror(ks: Rgb) -> (&'static str, Params) {
-    ("mirror", Params::new().with_color("ks", ks))
-}
-
 fn glass(ior: f32) -> (&'static str, Params) {
     ("glass", Params::new().with_number("ior", ior))
 }
@@ -443,11 +454,9 @@ mod tests {
     #[test]
     fn fresnel_and_exponents() {
         assert!((dielectric_f0(1.5) - 0.04).abs() < 1e-6);
-        // A conductor with k = 0 is a dielectric.
-        let f = conductor_f0(Rgb::splat(1.5), Rgb::BLACK);
-        assert!((f.r - 0.04).abs() < 1e-6);
         // Silver reflects over 90 % at normal incidence.
-        let ag = conductor_f0(
+        let ag = crate::bsdf::fresnel::complex(
+            1.0,
             named_spectrum("metal-Ag-eta").unwrap(),
             named_spectrum("metal-Ag-k").unwrap(),
         );
