@@ -740,3 +740,107 @@ impl Lights {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::{Rng, Stream};
+
+    fn triangle(two_sided: bool) -> Light {
+        let vertices = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        Light::Triangle {
+            vertices,
+            normal: Vec3::Z,
+            area: 0.5,
+            radiance: Rgb::splat(2.0),
+            two_sided,
+        }
+    }
+
+    /// Light sampling, a ray that hits the light and emission give one pdf each for the same
+    /// point and direction, on either side of a two-sided light and on the front of a
+    /// one-sided one; the back of a one-sided light gives nothing.
+    #[test]
+    fn area_light_pdfs_agree_between_strategies_on_both_sides() {
+        let mut rng = Rng::for_sample(1, 0, 0, Stream::Light);
+        for two_sided in [false, true] {
+            let light = triangle(two_sided);
+            for z in [0.7f32, -0.7] {
+                let receiver = Vec3::new(0.2, 0.3, z);
+                let il = light.illuminate(receiver, rng.next_2d(), Aim::Disc);
+                if !two_sided && z < 0.0 {
+                    assert!(il.is_none());
+                    assert!(light.radiance(Vec3::Z, Vec3::Z).is_none());
+                    continue;
+                }
+                let il = il.unwrap();
+                assert!(il.normal.dot(receiver - il.position) > 0.0);
+                let received = light.radiance(-il.dir_to_light, Vec3::Z).unwrap();
+                assert_eq!(received.radiance, il.radiance);
+                assert_eq!(received.direct_pdf_a, 2.0);
+                assert!((received.emission_pdf_w - il.emission_pdf_w).abs() < 1e-6);
+                let cos = il.dir_to_light.z.abs();
+                let sides = if two_sided { 2.0 } else { 1.0 };
+                assert!((il.emission_pdf_w - 2.0 * cos / PI / sides).abs() < 1e-6);
+            }
+        }
+        assert_eq!(triangle(true).power(), 2.0 * triangle(false).power());
+    }
+
+    /// Emission leaves each side of a two-sided light half the time, with half the one-sided
+    /// direction density, which is what a ray arriving along the emitted direction is told.
+    #[test]
+    fn two_sided_emission_picks_each_side_half_the_time() {
+        let mut rng = Rng::for_sample(2, 0, 0, Stream::Light);
+        let light = triangle(true);
+        let n = 100_000;
+        let mut front = 0;
+        for _ in 0..n {
+            let e = light
+                .emit(rng.next_2d(), rng.next_2d(), Aim::Disc)
+                .unwrap();
+            assert!(e.dir.dot(e.normal) > 0.0);
+            if e.dir.z > 0.0 {
+                front += 1;
+            }
+            let expected = 2.0 * e.cos_at_light / PI / 2.0;
+            assert!((e.emission_pdf_w - expected).abs() < 1e-5);
+            let received = light.radiance(-e.dir, Vec3::Z).unwrap();
+            assert!((received.emission_pdf_w - e.emission_pdf_w).abs() < 1e-5);
+        }
+        let sd = (n as f64 * 0.25).sqrt();
+        assert!((front as f64 - 0.5 * n as f64).abs() < 5.0 * sd, "{front} of {n}");
+    }
+
+    /// A spot light sends intensity times its falloff towards a receiver, and emission's
+    /// direction density is the one light sampling reports for that direction.
+    #[test]
+    fn spot_light_sampling_and_emission_agree() {
+        let cone = SpotCone::new(Vec3::new(0.0, -1.0, 0.3), 35.0, 10.0).unwrap();
+        let light = Light::Spot {
+            position: Vec3::new(0.1, 2.0, 0.0),
+            intensity: Rgb::splat(3.0),
+            cone,
+        };
+        let mut rng = Rng::for_sample(3, 0, 0, Stream::Light);
+        for _ in 0..1000 {
+            let e = light
+                .emit(rng.next_2d(), rng.next_2d(), Aim::Disc)
+                .unwrap();
+            let receiver = e.position + 1.7 * e.dir;
+            let il = light
+                .illuminate(receiver, rng.next_2d(), Aim::Disc)
+                .unwrap();
+            assert!((il.emission_pdf_w - e.emission_pdf_w).abs() <= 1e-4 * e.emission_pdf_w);
+            assert!((il.radiance.r - e.energy.r).abs() <= 1e-4 * e.energy.r);
+            assert!((il.direct_pdf_w - 1.7f32 * 1.7).abs() < 1e-4);
+            assert_eq!(e.energy.r, 3.0 * cone.falloff(e.dir));
+        }
+        // Behind the light, outside the cone: nothing.
+        assert!(light
+            .illuminate(Vec3::new(0.1, 3.0, 0.0), [0.5; 2], Aim::Disc)
+            .is_none());
+        assert!(light.is_delta() && light.is_finite());
+        assert_eq!(light.power(), 3.0 * cone.solid_angle());
+    }
+}
