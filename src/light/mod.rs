@@ -796,9 +796,7 @@ mod tests {
         let n = 100_000;
         let mut front = 0;
         for _ in 0..n {
-            let e = light
-                .emit(rng.next_2d(), rng.next_2d(), Aim::Disc)
-                .unwrap();
+            let e = light.emit(rng.next_2d(), rng.next_2d(), Aim::Disc).unwrap();
             assert!(e.dir.dot(e.normal) > 0.0);
             if e.dir.z > 0.0 {
                 front += 1;
@@ -809,7 +807,10 @@ mod tests {
             assert!((received.emission_pdf_w - e.emission_pdf_w).abs() < 1e-5);
         }
         let sd = (n as f64 * 0.25).sqrt();
-        assert!((front as f64 - 0.5 * n as f64).abs() < 5.0 * sd, "{front} of {n}");
+        assert!(
+            (front as f64 - 0.5 * n as f64).abs() < 5.0 * sd,
+            "{front} of {n}"
+        );
     }
 
     /// A spot light sends intensity times its falloff towards a receiver, and emission's
@@ -824,9 +825,7 @@ mod tests {
         };
         let mut rng = Rng::for_sample(3, 0, 0, Stream::Light);
         for _ in 0..1000 {
-            let e = light
-                .emit(rng.next_2d(), rng.next_2d(), Aim::Disc)
-                .unwrap();
+            let e = light.emit(rng.next_2d(), rng.next_2d(), Aim::Disc).unwrap();
             let receiver = e.position + 1.7 * e.dir;
             let il = light
                 .illuminate(receiver, rng.next_2d(), Aim::Disc)
