@@ -9,6 +9,7 @@ use glam::Vec3;
 use std::f64::consts::PI;
 use std::path::Path;
 use vmerge::accel::AccelKind;
+use vmerge::light::{Light, SpotCone};
 use vmerge::options::{RenderOptions, Technique};
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
@@ -252,4 +253,80 @@ fn two_sided_emitters_pass_the_furnace_from_both_sides() {
         }
         assert_eq!(stats.dropped, 0);
     }
+}
+
+/// pbrt-v4's spot light and two-sided area light as the importer builds them: position, axis
+/// and cone from `from`, `to`, `coneangle` and `conedeltaangle` under the transform; `I` times
+/// `scale`, or `power` over the falloff's solid angle 2 pi ((1 - cos_start) + (cos_start -
+/// cos_end) / 2); `twosided` on the emitters, doubling their power.
+#[test]
+fn pbrt_spot_and_two_sided_lights_import_as_pbrt_v4_defines_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("scene.pbrt");
+    std::fs::write(
+        &path,
+        "LookAt 0 1 4  0 1 0  0 1 0\nCamera \"perspective\" \"float fov\" 40\nWorldBegin\n\
+         Translate 0 1 0\n\
+         LightSource \"spot\" \"point3 from\" [ 0 1 0 ] \"point3 to\" [ 0 0 0 ]\n\
+         \"float coneangle\" [ 40 ] \"float conedeltaangle\" [ 10 ] \"rgb I\" [ 2 2 2 ] \"float scale\" 3\n\
+         LightSource \"spot\" \"point3 from\" [ 1 1 0 ] \"point3 to\" [ 1 1 1 ] \"float power\" 10\n\
+         AttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [ 1 1 1 ] \"bool twosided\" true\n\
+         Shape \"trianglemesh\" \"point3 P\" [ -1 0 -1  1 0 -1  1 0 1 ] \"integer indices\" [ 0 2 1 ]\n\
+         AttributeEnd\n\
+         AreaLightSource \"diffuse\" \"rgb L\" [ 1 1 1 ]\n\
+         Shape \"trianglemesh\" \"point3 P\" [ -1 3 -1  1 3 -1  1 3 1 ] \"integer indices\" [ 0 1 2 ]\n",
+    )
+    .unwrap();
+    let scene = load_file(&path);
+    let lights: Vec<&Light> = (0..scene.lights.len() as u32)
+        .map(|i| scene.lights.get(i))
+        .collect();
+    let spots: Vec<_> = lights
+        .iter()
+        .filter_map(|l| match l {
+            Light::Spot {
+                position,
+                intensity,
+                cone,
+            } => Some((*position, *intensity, *cone)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(spots.len(), 2);
+    let at = |cone: &SpotCone, deg: f32| {
+        let (s, c) = deg.to_radians().sin_cos();
+        let axis = cone.axis();
+        let side = axis.any_orthonormal_vector();
+        cone.falloff(axis * c + side * s)
+    };
+    let (position, intensity, cone) = spots[0];
+    assert!((position - Vec3::new(0.0, 2.0, 0.0)).length() < 1e-6);
+    assert!((cone.axis() - Vec3::NEG_Y).length() < 1e-6);
+    assert_eq!(intensity.r, 6.0);
+    assert_eq!(at(&cone, 29.0), 1.0);
+    assert!(at(&cone, 35.0) > 0.0 && at(&cone, 35.0) < 1.0);
+    assert_eq!(at(&cone, 41.0), 0.0);
+    // pbrt-v4's defaults: 30 and 5 degrees.
+    let (position, intensity, cone) = spots[1];
+    assert!((position - Vec3::new(1.0, 2.0, 0.0)).length() < 1e-6);
+    assert!((cone.axis() - Vec3::Z).length() < 1e-6);
+    let (cos_start, cos_end) = (25f64.to_radians().cos(), 30f64.to_radians().cos());
+    let k_e = 2.0 * PI * ((1.0 - cos_start) + (cos_start - cos_end) / 2.0);
+    assert!((intensity.r as f64 - 10.0 / k_e).abs() < 1e-4 * 10.0 / k_e);
+    assert_eq!(at(&cone, 24.0), 1.0);
+    assert_eq!(at(&cone, 31.0), 0.0);
+    let sided: Vec<bool> = lights
+        .iter()
+        .filter_map(|l| match l {
+            Light::Triangle { two_sided, .. } => Some(*two_sided),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(sided, [true, false]);
+    let powers: Vec<f32> = lights
+        .iter()
+        .filter(|l| matches!(l, Light::Triangle { .. }))
+        .map(|l| l.power())
+        .collect();
+    assert_eq!(powers[0], 2.0 * powers[1]);
 }

@@ -775,7 +775,7 @@ mod tests {
                 }
                 let il = il.unwrap();
                 assert!(il.normal.dot(receiver - il.position) > 0.0);
-                let received = light.radiance(-il.dir_to_light, Vec3::Z).unwrap();
+                let received = light.radiance(il.dir_to_light, Vec3::Z).unwrap();
                 assert_eq!(received.radiance, il.radiance);
                 assert_eq!(received.direct_pdf_a, 2.0);
                 assert!((received.emission_pdf_w - il.emission_pdf_w).abs() < 1e-6);

@@ -37,7 +37,7 @@ impl SpotCone {
         if !(cone_angle > 0.0 && cone_angle <= 180.0) {
             return Err(SpotError::ConeAngle(cone_angle));
         }
-        if !(cone_delta >= 0.0 && cone_delta <= cone_angle) {
+        if !(0.0..=cone_angle).contains(&cone_delta) {
             return Err(SpotError::ConeDelta {
                 delta: cone_delta,
                 angle: cone_angle,

@@ -17,7 +17,7 @@ use crate::bsdf::{BsdfError, Material, MaterialKind, Params};
 use crate::color::Rgb;
 use crate::files::{self, Kind};
 use crate::light::{EnvMapDesc, SceneBounds, SkyDesc};
-use crate::light::{Light, SpotCone};
+use crate::light::{Light, SpotCone, SpotError};
 use glam::{Mat3, Vec2, Vec3};
 use serde::Deserialize;
 use std::collections::{BTreeMap, HashMap};
@@ -978,7 +978,14 @@ impl Loader {
             l.cone_angle.unwrap_or(30.0),
             l.cone_delta.unwrap_or(5.0),
         )
-        .map_err(|e| self.invalid(format!("{entry}.cone_angle"), e.to_string()))?;
+        .map_err(|e| {
+            let key = match e {
+                SpotError::ConeDelta { .. } => "cone_delta",
+                SpotError::ConeAngle(_) => "cone_angle",
+                SpotError::Axis(_) => "direction",
+            };
+            self.invalid(format!("{entry}.{key}"), e.to_string())
+        })?;
         Ok(Light::Spot {
             position,
             intensity: self.color(
