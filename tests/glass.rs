@@ -111,11 +111,13 @@ fn pane_scene(accel: AccelKind) -> Scene {
                 name: "glass".into(),
                 kind: MaterialKind::Glass { ior: IOR as f32 },
                 emission: Rgb::BLACK,
+                two_sided: false,
             },
             Material {
                 name: "light".into(),
                 kind: MaterialKind::Lambert { kd: Rgb::BLACK },
                 emission: Rgb::WHITE,
+                two_sided: false,
             },
         ],
         material_textures: vec![Default::default(); 2],

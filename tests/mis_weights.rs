@@ -581,7 +581,7 @@ fn vcm_weights(
 }
 
 fn paths(scene_name: &str, seed: u64, count_per_length: usize, aim: Aim) -> (Scene, Vec<FullPath>) {
-    let scene = common::load(scene_name);
+    let scene = load_scene(scene_name);
     let desc = scene.camera(None).unwrap().clone();
     let setup = Setup {
         scene: &scene,
@@ -787,4 +787,31 @@ fn weights_sum_to_one_with_point_directional_and_sky_lights() {
             check_scene(name, aim);
         }
     }
+}
+
+/// A shipped scene by its name, or a test scene by its folder under tests/ (`fixtures/...`).
+fn load_scene(name: &str) -> Scene {
+    if !name.starts_with("fixtures/") {
+        return common::load(name);
+    }
+    let path = format!("{}/tests/{name}/scene.toml", env!("CARGO_MANIFEST_DIR"));
+    let options = vmerge::scene::LoadOptions {
+        accel: vmerge::accel::AccelKind::default_kind(),
+        lenient: false,
+        shading_normals: true,
+    };
+    vmerge::scene::load(path.as_ref(), &options).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Paths that start at a spot light: its falloff in the light-sampling radiance and its cone
+/// sampling in the emission pdf.
+#[test]
+fn weights_sum_to_one_with_a_spot_light() {
+    check_scene("fixtures/lights/spot", Aim::Disc);
+}
+
+/// Paths that start on either side of two-sided emitters, whose emission pdf is halved.
+#[test]
+fn weights_sum_to_one_with_two_sided_lights() {
+    check_scene("fixtures/lights/twosided", Aim::Disc);
 }

@@ -79,6 +79,8 @@ pub struct Material {
     pub name: String,
     pub kind: MaterialKind,
     pub emission: Rgb,
+    /// Whether the emission leaves both sides of the surface, not only its normal's.
+    pub two_sided: bool,
 }
 
 impl Material {

@@ -115,9 +115,10 @@ impl<'a> PathTracer<'a> {
         if last_delta {
             return received.radiance;
         }
-        // The light-sampling density of this point, per solid angle at the previous vertex.
+        // The light-sampling density of this point, per solid angle at the previous vertex (on
+        // either side of a two-sided light).
         let distance = hit.hit.t * ray.dir.length();
-        let cos_at_light = hit.ng.dot(-ray.dir.normalize());
+        let cos_at_light = hit.ng.dot(-ray.dir.normalize()).abs();
         let direct_pdf_w =
             received.direct_pdf_a * lights.pick_pdf(index) * distance * distance / cos_at_light;
         received.radiance * self.mis(last_pdf_w, direct_pdf_w)

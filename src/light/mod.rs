@@ -1,5 +1,5 @@
-//! Lights: emissive triangles and spheres (area lights), point, directional and the sky (a
-//! gradient, or an environment image: `env.rs`).
+//! Lights: emissive triangles and spheres (area lights, one- or two-sided), point, spot
+//! (`spot.rs`), directional and the sky (a gradient, or an environment image: `env.rs`).
 //!
 //! Every light answers the three questions the integrators ask (SmallVCM's interface, 001
 //! sec. 5.1 for the infinite ones):
@@ -23,9 +23,11 @@ use std::sync::Arc;
 
 mod bounds;
 mod env;
+mod spot;
 
 pub use bounds::{Aim, SceneBounds};
 pub use env::{EnvLight, EnvMapDesc};
+pub use spot::{SpotCone, SpotError};
 
 /// Background radiance L(w) = horizon + (zenith - horizon) * max(0, w . up).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -40,21 +42,30 @@ const NO_LIGHT: u32 = u32::MAX;
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum Light {
-    /// An emissive triangle, radiating `radiance` on the side of its normal.
+    /// An emissive triangle, radiating `radiance` on the side of its normal, or on both
+    /// sides when `two_sided`.
     Triangle {
         vertices: [Vec3; 3],
         normal: Vec3,
         area: f32,
         radiance: Rgb,
+        two_sided: bool,
     },
-    /// An emissive sphere, radiating outwards.
+    /// An emissive sphere, radiating outwards (and inwards too when `two_sided`).
     Sphere {
         center: Vec3,
         radius: f32,
         radiance: Rgb,
+        two_sided: bool,
     },
     /// `intensity` in W/sr, uniform in all directions.
     Point { position: Vec3, intensity: Rgb },
+    /// `intensity` in W/sr along the axis of `cone`, falling off towards its edge.
+    Spot {
+        position: Vec3,
+        intensity: Rgb,
+        cone: SpotCone,
+    },
     /// Parallel light travelling along the unit `direction`; `irradiance` in W/m^2 on a
     /// perpendicular surface. `scene` is where its light sub-paths start.
     Directional {
@@ -141,18 +152,22 @@ impl Light {
             Light::Triangle { .. } => "an emissive triangle",
             Light::Sphere { .. } => "an emissive sphere",
             Light::Point { .. } => "a point light",
+            Light::Spot { .. } => "a spot light",
             Light::Directional { .. } => "a directional light",
             Light::Sky { .. } => "the sky",
             Light::Env { .. } => "the environment image",
         }
     }
 
-    /// A delta light cannot be hit by a ray (point, directional).
+    /// A delta light cannot be hit by a ray (point, spot, directional).
     pub fn is_delta(&self) -> bool {
-        matches!(self, Light::Point { .. } | Light::Directional { .. })
+        matches!(
+            self,
+            Light::Point { .. } | Light::Spot { .. } | Light::Directional { .. }
+        )
     }
 
-    /// A finite light has a position (area, point); directional and sky lights do not.
+    /// A finite light has a position (area, point, spot); directional and sky lights do not.
     pub fn is_finite(&self) -> bool {
         !matches!(
             self,
@@ -163,11 +178,22 @@ impl Light {
     /// Total emitted power (approximate for the sky), for light selection.
     pub fn power(&self) -> f32 {
         match self {
-            Light::Triangle { area, radiance, .. } => radiance.average() * area * PI,
+            Light::Triangle {
+                area,
+                radiance,
+                two_sided,
+                ..
+            } => radiance.average() * area * PI * sides(*two_sided),
             Light::Sphere {
-                radius, radiance, ..
-            } => radiance.average() * 4.0 * PI * radius * radius * PI,
+                radius,
+                radiance,
+                two_sided,
+                ..
+            } => radiance.average() * 4.0 * PI * radius * radius * PI * sides(*two_sided),
             Light::Point { intensity, .. } => intensity.average() * 4.0 * PI,
+            Light::Spot {
+                intensity, cone, ..
+            } => intensity.average() * cone.solid_angle(),
             Light::Directional {
                 direction,
                 irradiance,
@@ -185,31 +211,40 @@ impl Light {
         }
     }
 
-    /// A uniform point on an area light: position, normal, density per area, radiance.
-    fn area_point(&self, u: [f32; 2]) -> Option<(Vec3, Vec3, f32, Rgb)> {
+    /// A uniform point on an area light.
+    fn area_point(&self, u: [f32; 2]) -> Option<AreaPoint> {
         match *self {
             Light::Triangle {
                 vertices,
                 normal,
                 area,
                 radiance,
+                two_sided,
             } => {
                 let (b1, b2) = sampling::uniform_triangle(u);
                 let p = (1.0 - b1 - b2) * vertices[0] + b1 * vertices[1] + b2 * vertices[2];
-                Some((p, normal, 1.0 / area, radiance))
+                Some(AreaPoint {
+                    position: p,
+                    normal,
+                    pdf_a: 1.0 / area,
+                    radiance,
+                    two_sided,
+                })
             }
             Light::Sphere {
                 center,
                 radius,
                 radiance,
+                two_sided,
             } => {
                 let n = sampling::uniform_sphere(u);
-                Some((
-                    center + radius * n,
-                    n,
-                    1.0 / (4.0 * PI * radius * radius),
+                Some(AreaPoint {
+                    position: center + radius * n,
+                    normal: n,
+                    pdf_a: 1.0 / (4.0 * PI * radius * radius),
                     radiance,
-                ))
+                    two_sided,
+                })
             }
             _ => None,
         }
@@ -220,8 +255,7 @@ impl Light {
     pub fn illuminate(&self, receiver: Vec3, u: [f32; 2], aim: Aim) -> Option<Illumination> {
         match *self {
             Light::Triangle { .. } | Light::Sphere { .. } => {
-                let (p, normal, pdf_a, radiance) = self.area_point(u)?;
-                area_illumination(receiver, p, normal, pdf_a, radiance)
+                area_illumination(receiver, self.area_point(u)?)
             }
             Light::Point {
                 position,
@@ -238,6 +272,30 @@ impl Light {
                     radiance: intensity,
                     direct_pdf_w: dist2,
                     emission_pdf_w: sampling::UNIFORM_SPHERE_PDF,
+                    cos_at_light: 1.0,
+                })
+            }
+            Light::Spot {
+                position,
+                intensity,
+                cone,
+            } => {
+                let to_light = position - receiver;
+                let dist2 = to_light.length_squared();
+                let distance = dist2.sqrt();
+                if distance <= 0.0 {
+                    return None;
+                }
+                let dir_from_light = -to_light / distance;
+                let falloff = cone.falloff(dir_from_light);
+                (falloff > 0.0).then(|| Illumination {
+                    dir_to_light: to_light / distance,
+                    distance,
+                    position,
+                    normal: dir_from_light,
+                    radiance: intensity * falloff,
+                    direct_pdf_w: dist2,
+                    emission_pdf_w: cone.pdf_w(dir_from_light),
                     cos_at_light: 1.0,
                 })
             }
@@ -290,8 +348,7 @@ impl Light {
     pub fn emit(&self, u_pos: [f32; 2], u_dir: [f32; 2], aim: Aim) -> Option<Emission> {
         match *self {
             Light::Triangle { .. } | Light::Sphere { .. } => {
-                let (p, normal, pdf_a, radiance) = self.area_point(u_pos)?;
-                area_emission(p, normal, pdf_a, radiance, u_dir)
+                area_emission(self.area_point(u_pos)?, u_dir)
             }
             Light::Point {
                 position,
@@ -305,6 +362,23 @@ impl Light {
                     energy: intensity,
                     direct_pdf_a: 1.0,
                     emission_pdf_w: sampling::UNIFORM_SPHERE_PDF,
+                    cos_at_light: 1.0,
+                })
+            }
+            Light::Spot {
+                position,
+                intensity,
+                cone,
+            } => {
+                // The position is fixed: its random number picks the cone's part instead.
+                let (dir, falloff, pdf_w) = cone.sample(u_pos[0], u_dir);
+                (pdf_w > 0.0).then_some(Emission {
+                    position,
+                    dir,
+                    normal: dir,
+                    energy: intensity * falloff,
+                    direct_pdf_a: 1.0,
+                    emission_pdf_w: pdf_w,
                     cos_at_light: 1.0,
                 })
             }
@@ -356,76 +430,112 @@ impl Light {
 
     /// Radiance leaving the area light at `position` (normal `normal`) towards a ray that
     /// arrives travelling along `ray_dir` (unit), with the pdfs of the other strategies.
-    /// `None` for the back side and for lights a ray cannot hit.
+    /// `None` for the back side of a one-sided light and for lights a ray cannot hit.
     pub fn radiance(&self, ray_dir: Vec3, normal: Vec3) -> Option<Received> {
-        let (pdf_a, radiance) = match *self {
-            Light::Triangle { area, radiance, .. } => (1.0 / area, radiance),
+        let (pdf_a, radiance, two_sided) = match *self {
+            Light::Triangle {
+                area,
+                radiance,
+                two_sided,
+                ..
+            } => (1.0 / area, radiance, two_sided),
             Light::Sphere {
-                radius, radiance, ..
-            } => (1.0 / (4.0 * PI * radius * radius), radiance),
+                radius,
+                radiance,
+                two_sided,
+                ..
+            } => (1.0 / (4.0 * PI * radius * radius), radiance, two_sided),
             _ => return None,
         };
         let cos = normal.dot(-ray_dir);
+        let cos = if two_sided { cos.abs() } else { cos };
         (cos > 0.0).then_some(Received {
             radiance,
             direct_pdf_a: pdf_a,
-            emission_pdf_w: pdf_a * cos * FRAC_1_PI,
+            emission_pdf_w: pdf_a * cos * FRAC_1_PI / sides(two_sided),
         })
     }
 }
 
-fn area_illumination(
-    receiver: Vec3,
-    p: Vec3,
+/// A point on an area light: its normal, density per area, radiance and sidedness.
+struct AreaPoint {
+    position: Vec3,
     normal: Vec3,
     pdf_a: f32,
     radiance: Rgb,
-) -> Option<Illumination> {
-    let to_light = p - receiver;
+    two_sided: bool,
+}
+
+/// How many sides of an area light emit: a two-sided light emits twice the power, and its
+/// sub-paths choose a side with probability 1/2, halving their direction density.
+fn sides(two_sided: bool) -> f32 {
+    if two_sided {
+        2.0
+    } else {
+        1.0
+    }
+}
+
+fn area_illumination(receiver: Vec3, a: AreaPoint) -> Option<Illumination> {
+    let to_light = a.position - receiver;
     let dist2 = to_light.length_squared();
     let distance = dist2.sqrt();
     if distance <= 0.0 {
         return None;
     }
     let dir_to_light = to_light / distance;
-    let cos_at_light = normal.dot(-dir_to_light);
+    let mut normal = a.normal;
+    let mut cos_at_light = normal.dot(-dir_to_light);
+    if a.two_sided && cos_at_light < 0.0 {
+        // The back side faces the receiver: its normal is the one a shadow ray stops short of.
+        normal = -normal;
+        cos_at_light = -cos_at_light;
+    }
     if cos_at_light <= 0.0 {
         return None;
     }
     Some(Illumination {
         dir_to_light,
         distance,
-        position: p,
+        position: a.position,
         normal,
-        radiance,
+        radiance: a.radiance,
         // Area to solid angle at the receiver.
-        direct_pdf_w: pdf_a * dist2 / cos_at_light,
-        emission_pdf_w: pdf_a * cos_at_light * FRAC_1_PI,
+        direct_pdf_w: a.pdf_a * dist2 / cos_at_light,
+        emission_pdf_w: a.pdf_a * cos_at_light * FRAC_1_PI / sides(a.two_sided),
         cos_at_light,
     })
 }
 
-fn area_emission(
-    p: Vec3,
-    normal: Vec3,
-    pdf_a: f32,
-    radiance: Rgb,
-    u: [f32; 2],
-) -> Option<Emission> {
+fn area_emission(a: AreaPoint, u: [f32; 2]) -> Option<Emission> {
+    let (normal, u) = if !a.two_sided {
+        (a.normal, u)
+    } else if u[0] < 0.5 {
+        // pbrt-v4's choice of side: the first number, stretched back to [0, 1).
+        (a.normal, [(2.0 * u[0]).min(ONE_MINUS_EPSILON), u[1]])
+    } else {
+        (
+            -a.normal,
+            [(2.0 * (u[0] - 0.5)).min(ONE_MINUS_EPSILON), u[1]],
+        )
+    };
     let local = sampling::cosine_hemisphere(u);
     if local.z <= 0.0 {
         return None;
     }
     Some(Emission {
-        position: p,
+        position: a.position,
         dir: Frame::from_z(normal).to_world(local),
         normal,
-        energy: radiance * local.z,
-        direct_pdf_a: pdf_a,
-        emission_pdf_w: pdf_a * local.z * FRAC_1_PI,
+        energy: a.radiance * local.z,
+        direct_pdf_a: a.pdf_a,
+        emission_pdf_w: a.pdf_a * local.z * FRAC_1_PI / sides(a.two_sided),
         cos_at_light: local.z,
     })
 }
+
+/// The largest f32 below 1.
+const ONE_MINUS_EPSILON: f32 = 1.0 - f32::EPSILON / 2.0;
 
 /// The sky's radiance seen looking along the unit direction `w`.
 pub fn sky_radiance(sky: &SkyDesc, w: Vec3) -> Rgb {
@@ -475,6 +585,7 @@ impl Lights {
                 normal: cross.normalize(),
                 area,
                 radiance: emission,
+                two_sided: materials[m as usize].two_sided,
             });
         }
         let mut sphere_lights = vec![NO_LIGHT; geometry.spheres.len()];
@@ -489,6 +600,7 @@ impl Lights {
                 center: s.center,
                 radius: s.radius,
                 radiance: emission,
+                two_sided: materials[m as usize].two_sided,
             });
         }
         for light in explicit {
@@ -626,5 +738,108 @@ impl Lights {
             Some(Light::Env { env, .. }) => env.distribution_bytes(),
             _ => 0,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::{Rng, Stream};
+
+    fn triangle(two_sided: bool) -> Light {
+        let vertices = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        Light::Triangle {
+            vertices,
+            normal: Vec3::Z,
+            area: 0.5,
+            radiance: Rgb::splat(2.0),
+            two_sided,
+        }
+    }
+
+    /// Light sampling, a ray that hits the light and emission give one pdf each for the same
+    /// point and direction, on either side of a two-sided light and on the front of a
+    /// one-sided one; the back of a one-sided light gives nothing.
+    #[test]
+    fn area_light_pdfs_agree_between_strategies_on_both_sides() {
+        let mut rng = Rng::for_sample(1, 0, 0, Stream::Light);
+        for two_sided in [false, true] {
+            let light = triangle(two_sided);
+            for z in [0.7f32, -0.7] {
+                let receiver = Vec3::new(0.2, 0.3, z);
+                let il = light.illuminate(receiver, rng.next_2d(), Aim::Disc);
+                if !two_sided && z < 0.0 {
+                    assert!(il.is_none());
+                    assert!(light.radiance(Vec3::Z, Vec3::Z).is_none());
+                    continue;
+                }
+                let il = il.unwrap();
+                assert!(il.normal.dot(receiver - il.position) > 0.0);
+                let received = light.radiance(il.dir_to_light, Vec3::Z).unwrap();
+                assert_eq!(received.radiance, il.radiance);
+                assert_eq!(received.direct_pdf_a, 2.0);
+                assert!((received.emission_pdf_w - il.emission_pdf_w).abs() < 1e-6);
+                let cos = il.dir_to_light.z.abs();
+                let sides = if two_sided { 2.0 } else { 1.0 };
+                assert!((il.emission_pdf_w - 2.0 * cos / PI / sides).abs() < 1e-6);
+            }
+        }
+        assert_eq!(triangle(true).power(), 2.0 * triangle(false).power());
+    }
+
+    /// Emission leaves each side of a two-sided light half the time, with half the one-sided
+    /// direction density, which is what a ray arriving along the emitted direction is told.
+    #[test]
+    fn two_sided_emission_picks_each_side_half_the_time() {
+        let mut rng = Rng::for_sample(2, 0, 0, Stream::Light);
+        let light = triangle(true);
+        let n = 100_000;
+        let mut front = 0;
+        for _ in 0..n {
+            let e = light.emit(rng.next_2d(), rng.next_2d(), Aim::Disc).unwrap();
+            assert!(e.dir.dot(e.normal) > 0.0);
+            if e.dir.z > 0.0 {
+                front += 1;
+            }
+            let expected = 2.0 * e.cos_at_light / PI / 2.0;
+            assert!((e.emission_pdf_w - expected).abs() < 1e-5);
+            let received = light.radiance(-e.dir, Vec3::Z).unwrap();
+            assert!((received.emission_pdf_w - e.emission_pdf_w).abs() < 1e-5);
+        }
+        let sd = (n as f64 * 0.25).sqrt();
+        assert!(
+            (front as f64 - 0.5 * n as f64).abs() < 5.0 * sd,
+            "{front} of {n}"
+        );
+    }
+
+    /// A spot light sends intensity times its falloff towards a receiver, and emission's
+    /// direction density is the one light sampling reports for that direction.
+    #[test]
+    fn spot_light_sampling_and_emission_agree() {
+        let cone = SpotCone::new(Vec3::new(0.0, -1.0, 0.3), 35.0, 10.0).unwrap();
+        let light = Light::Spot {
+            position: Vec3::new(0.1, 2.0, 0.0),
+            intensity: Rgb::splat(3.0),
+            cone,
+        };
+        let mut rng = Rng::for_sample(3, 0, 0, Stream::Light);
+        for _ in 0..1000 {
+            let e = light.emit(rng.next_2d(), rng.next_2d(), Aim::Disc).unwrap();
+            let receiver = e.position + 1.7 * e.dir;
+            let il = light
+                .illuminate(receiver, rng.next_2d(), Aim::Disc)
+                .unwrap();
+            assert!((il.emission_pdf_w - e.emission_pdf_w).abs() <= 1e-4 * e.emission_pdf_w);
+            assert!((il.radiance.r - e.energy.r).abs() <= 1e-4 * e.energy.r);
+            assert!((il.direct_pdf_w - 1.7f32 * 1.7).abs() < 1e-4);
+            assert_eq!(e.energy.r, 3.0 * cone.falloff(e.dir));
+        }
+        // Behind the light, outside the cone: nothing.
+        assert!(light
+            .illuminate(Vec3::new(0.1, 3.0, 0.0), [0.5; 2], Aim::Disc)
+            .is_none());
+        assert!(light.is_delta() && light.is_finite());
+        assert_eq!(light.power(), 3.0 * cone.solid_angle());
     }
 }

@@ -79,6 +79,8 @@ pub struct MaterialDesc {
     pub type_name: &'static str,
     pub params: Params,
     pub emission: Rgb,
+    /// Emission on both sides.
+    pub two_sided: bool,
 }
 
 impl MaterialDesc {
@@ -89,6 +91,7 @@ impl MaterialDesc {
             type_name,
             params,
             emission: Rgb::BLACK,
+            two_sided: false,
         }
     }
 }
@@ -242,14 +245,17 @@ impl Builder {
             name: desc.name,
             kind,
             emission: desc.emission,
+            two_sided: desc.two_sided,
         }))
     }
 
-    /// Adds a material that is a variant of one already checked (an emissive copy).
-    pub fn variant(&mut self, base: u32, name: String, emission: Rgb) -> u32 {
+    /// Adds a material that is a variant of one already checked (an emissive copy, on one side
+    /// or on both).
+    pub fn variant(&mut self, base: u32, name: String, emission: Rgb, two_sided: bool) -> u32 {
         let mut m = self.materials[base as usize].clone();
         m.name = name;
         m.emission = emission;
+        m.two_sided = two_sided;
         let textures = self.material_textures[base as usize];
         let index = self.push_material(m);
         self.material_textures[index as usize] = textures;

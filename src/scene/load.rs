@@ -16,8 +16,8 @@ use crate::accel::{AccelKind, Geometry, Sphere};
 use crate::bsdf::{BsdfError, Material, MaterialKind, Params};
 use crate::color::Rgb;
 use crate::files::{self, Kind};
-use crate::light::Light;
 use crate::light::{EnvMapDesc, SceneBounds, SkyDesc};
+use crate::light::{Light, SpotCone, SpotError};
 use glam::{Mat3, Vec2, Vec3};
 use serde::Deserialize;
 use std::collections::{BTreeMap, HashMap};
@@ -140,6 +140,8 @@ struct MaterialTable {
     exponent: Option<f32>,
     ior: Option<f32>,
     emission: Option<[f32; 3]>,
+    /// Emission on both sides of the surface.
+    two_sided: Option<bool>,
     /// Image for kd, relative to the scene file.
     texture: Option<PathBuf>,
     /// Image for Phong's ks.
@@ -177,6 +179,11 @@ struct LightTable {
     intensity: Option<[f32; 3]>,
     direction: Option<[f32; 3]>,
     irradiance: Option<[f32; 3]>,
+    /// A spot light's aim, instead of its `direction`.
+    look_at: Option<[f32; 3]>,
+    /// Degrees off the axis where a spot light's falloff ends, and its width.
+    cone_angle: Option<f32>,
+    cone_delta: Option<f32>,
 }
 
 /// Loads, validates and builds the scene at `path`.
@@ -671,6 +678,7 @@ impl Loader {
         };
         Ok(MaterialDesc {
             emission,
+            two_sided: t.two_sided.or(base.map(|m| m.two_sided)).unwrap_or(false),
             ..MaterialDesc::new(name, type_name, params)
         })
     }
@@ -977,6 +985,19 @@ impl Loader {
         let need = |v: Option<[f32; 3]>, key: &str| {
             v.ok_or_else(|| self.invalid(&entry, format!("a {} light needs `{key}`", l.kind)))
         };
+        if l.kind != "spot" {
+            let spot_only = [
+                ("look_at", l.look_at.is_some()),
+                ("cone_angle", l.cone_angle.is_some()),
+                ("cone_delta", l.cone_delta.is_some()),
+            ];
+            if let Some((key, _)) = spot_only.iter().find(|(_, given)| *given) {
+                return Err(self.invalid(
+                    format!("{entry}.{key}"),
+                    format!("only spot lights take `{key}`, not a {} light", l.kind),
+                ));
+            }
+        }
         match l.kind.as_str() {
             "point" => Ok(Light::Point {
                 position: self.point(&format!("{entry}.position"), need(l.position, "position")?)?,
@@ -987,11 +1008,60 @@ impl Loader {
                 irradiance: self.color(&format!("{entry}.irradiance"), need(l.irradiance, "irradiance")?)?,
                 scene: SceneBounds::new(Vec3::ZERO, Vec3::ONE),
             }),
+            "spot" => self.spot(&entry, l),
             other => Err(self.invalid(
                 format!("{entry}.type"),
-                format!("unknown light type '{other}' (point, directional; area lights are emissive materials)"),
+                format!("unknown light type '{other}' (point, spot, directional; area lights are emissive materials)"),
             )),
         }
+    }
+}
+
+impl Loader {
+    /// A spot light: its axis by `direction` or by `look_at`, its cone in degrees (pbrt-v4's
+    /// defaults: 30 and 5).
+    fn spot(&self, entry: &str, l: &LightTable) -> Result<Light, SceneError> {
+        let need = |v: Option<[f32; 3]>, key: &str| {
+            v.ok_or_else(|| self.invalid(entry, format!("a spot light needs `{key}`")))
+        };
+        let position = self.point(&format!("{entry}.position"), need(l.position, "position")?)?;
+        let axis = match (l.direction, l.look_at) {
+            (Some(d), None) => self.direction(&format!("{entry}.direction"), d)?,
+            (None, Some(target)) => {
+                let key = format!("{entry}.look_at");
+                let axis = self.point(&key, target)? - position;
+                if axis.length_squared() == 0.0 {
+                    return Err(self.invalid(key, "the spot light looks at its own position"));
+                }
+                axis
+            }
+            _ => {
+                return Err(
+                    self.invalid(entry, "a spot light needs one of `direction` and `look_at`")
+                )
+            }
+        };
+        let cone = SpotCone::new(
+            axis,
+            l.cone_angle.unwrap_or(30.0),
+            l.cone_delta.unwrap_or(5.0),
+        )
+        .map_err(|e| {
+            let key = match e {
+                SpotError::ConeDelta { .. } => "cone_delta",
+                SpotError::ConeAngle(_) => "cone_angle",
+                SpotError::Axis(_) => "direction",
+            };
+            self.invalid(format!("{entry}.{key}"), e.to_string())
+        })?;
+        Ok(Light::Spot {
+            position,
+            intensity: self.color(
+                &format!("{entry}.intensity"),
+                need(l.intensity, "intensity")?,
+            )?,
+            cone,
+        })
     }
 }
 

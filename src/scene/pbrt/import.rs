@@ -91,7 +91,7 @@ pub(super) struct Importer {
     /// texels, and the Texture directive.
     pub(super) material_textures: Vec<Option<(PathBuf, Rgb, Loc)>>,
     pub(super) default_material: Option<u32>,
-    pub(super) emissive: HashMap<(u32, [u32; 3]), u32>,
+    pub(super) emissive: HashMap<(u32, [u32; 3], bool), u32>,
     pub(super) camera: Option<CameraDesc>,
     pub(super) resolution: Option<[u32; 2]>,
     pub(super) max_path_length: Option<u32>,

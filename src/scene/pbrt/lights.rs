@@ -1,11 +1,12 @@
-//! Lights: area lights (emissive variants of their shapes' materials), point and distant
-//! lights, and the infinite light as a constant sky or an environment image.
+//! Lights: area lights (emissive variants of their shapes' materials, one- or two-sided),
+//! point, spot and distant lights, and the infinite light as a constant sky or an environment
+//! image.
 
 use super::import::{Importer, Loc};
 use super::parser::Directive;
 use crate::color::Rgb;
 use crate::files::snippet;
-use crate::light::{EnvMapDesc, Light, SceneBounds, SkyDesc};
+use crate::light::{EnvMapDesc, Light, SceneBounds, SkyDesc, SpotCone};
 use crate::options::OptionName;
 use crate::scene::SceneError;
 use crate::texture;
@@ -16,6 +17,7 @@ use std::sync::Arc;
 #[derive(Clone, Debug)]
 pub(super) struct AreaLight {
     pub(super) radiance: Rgb,
+    pub(super) two_sided: bool,
     pub(super) loc: Loc,
 }
 
@@ -34,12 +36,7 @@ impl Importer {
         }
         let l = self.spectrum(loc, &d.params, "L", Rgb::WHITE)?;
         let scale = d.params.float("scale", 1.0).map_err(&pe)?;
-        if d.params.bool("twosided", false).map_err(&pe)? {
-            self.warn(
-                loc,
-                "AreaLightSource: twosided is not supported; emits on the front side only",
-            );
-        }
+        let two_sided = d.params.bool("twosided", false).map_err(&pe)?;
         if d.params.string("filename").map_err(&pe)?.is_some() {
             self.warn(
                 loc,
@@ -48,6 +45,7 @@ impl Importer {
         }
         self.state.area_light = Some(AreaLight {
             radiance: l * scale,
+            two_sided,
             loc,
         });
         Ok(())
@@ -57,22 +55,54 @@ impl Importer {
         let pe = self.pe(loc.file);
         let p = &d.params;
         let scale = p.float("scale", 1.0).map_err(&pe)?;
-        for ignored in ["power", "illuminance"] {
-            if p.float(ignored, -1.0).map_err(&pe)? > 0.0 {
-                self.warn(
-                    loc,
-                    format!("LightSource: '{ignored}' not supported; scale used"),
-                );
-            }
+        // pbrt-v4 scales point and spot lights to emit `power` (with the spectrum's
+        // luminance as the unit, which the RGB reduction already is).
+        let power = p.float("power", -1.0).map_err(&pe)?;
+        let with_power = matches!(d.str_arg(0), "point" | "spot");
+        if power > 0.0 && !with_power {
+            self.warn(loc, "LightSource: 'power' not supported; scale used");
+        }
+        if p.float("illuminance", -1.0).map_err(&pe)? > 0.0 {
+            self.warn(loc, "LightSource: 'illuminance' not supported; scale used");
         }
         let ctm = self.state.ctm;
         match d.str_arg(0) {
             "point" => {
-                let intensity = self.spectrum(loc, p, "I", Rgb::WHITE)? * scale;
+                let mut intensity = self.spectrum(loc, p, "I", Rgb::WHITE)? * scale;
+                if power > 0.0 {
+                    intensity *= power / (4.0 * std::f32::consts::PI);
+                }
                 let from = DVec3::from_array(p.vec3("from", [0.0; 3]).map_err(&pe)?);
                 self.lights.push(Light::Point {
                     position: ctm.transform_point3(from).as_vec3(),
                     intensity,
+                });
+            }
+            "spot" => {
+                let mut intensity = self.spectrum(loc, p, "I", Rgb::WHITE)? * scale;
+                let from = DVec3::from_array(p.vec3("from", [0.0; 3]).map_err(&pe)?);
+                let to = DVec3::from_array(p.vec3("to", [0.0, 0.0, 1.0]).map_err(&pe)?);
+                let cone_angle = p.float("coneangle", 30.0).map_err(&pe)?;
+                let cone_delta = p.float("conedeltaangle", 5.0).map_err(&pe)?;
+                let axis = ctm
+                    .transform_vector3(to - from)
+                    .normalize_or_zero()
+                    .as_vec3();
+                let cone = SpotCone::new(axis, cone_angle, cone_delta).map_err(|e| {
+                    let what = if axis == Vec3::ZERO {
+                        "from and to coincide".to_string()
+                    } else {
+                        e.to_string()
+                    };
+                    self.at(loc, format!("LightSource spot: {what}"))
+                })?;
+                if power > 0.0 {
+                    intensity *= power / cone.solid_angle();
+                }
+                self.lights.push(Light::Spot {
+                    position: ctm.transform_point3(from).as_vec3(),
+                    intensity,
+                    cone,
                 });
             }
             "distant" => {
@@ -125,7 +155,7 @@ impl Importer {
                     None => self.sky = Some(constant_sky(l)),
                 }
             }
-            other @ ("spot" | "goniometric" | "projection") => {
+            other @ ("goniometric" | "projection") => {
                 self.warn(
                     loc,
                     format!(

@@ -393,7 +393,11 @@ impl Importer {
         if light.radiance.is_black() {
             return Ok(base);
         }
-        let key = (base, light.radiance.to_array().map(f32::to_bits));
+        let key = (
+            base,
+            light.radiance.to_array().map(f32::to_bits),
+            light.two_sided,
+        );
         if let Some(&m) = self.emissive.get(&key) {
             return Ok(m);
         }
@@ -403,7 +407,9 @@ impl Importer {
             self.files[light.loc.file].display(),
             light.loc.line
         );
-        let index = self.builder.variant(base, name, light.radiance);
+        let index = self
+            .builder
+            .variant(base, name, light.radiance, light.two_sided);
         self.material_textures
             .push(self.material_textures[base as usize].clone());
         self.emissive.insert(key, index);
