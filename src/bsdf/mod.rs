@@ -61,6 +61,8 @@ registry! {
     phong::Phong { kd: Rgb, ks: Rgb, exponent: f32 },
     mirror::Mirror { ks: Rgb },
     glass::Glass { ior: f32 },
+    /// pbrt-v4's lambertian reflection and transmission.
+    diffuse_transmission::DiffuseTransmission { r: Rgb, t: Rgb },
 }
 
 /// A named material: how it scatters and what it emits (radiance, one-sided, on the side the
