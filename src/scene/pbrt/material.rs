@@ -6,12 +6,13 @@
 //! handles what a file states beyond that.
 
 use super::import::{Importer, Loc};
-use super::parser::{Directive, ParamList, ParamType, Spectrum};
+use super::parser::{Directive, ParamList, ParamType, Spectrum, Values};
 use super::textures::Tex;
 use crate::bsdf::{EnergyFix, MaterialKind, Params};
 use crate::color::Rgb;
 use crate::files::snippet;
 use crate::scene::builder::{round3, MaterialDesc, Origin};
+use crate::scene::Mix;
 use crate::scene::SceneError;
 
 /// The largest Phong exponent a mapped material gets: past it, f32 cannot resolve the lobe
@@ -259,15 +260,16 @@ impl Importer {
             }
             "diffusetransmission" => {
                 let reflectance = albedo(self, "reflectance", Rgb::splat(0.25))?;
+                let transmittance =
+                    self.constant_spectrum(loc, p, "transmittance", Rgb::splat(0.25))?;
+                // pbrt-v4 scales both and clamps each to [0, 1].
                 let scale = p.float("scale", 1.0).map_err(&pe)?;
-                p.mark_used(&["transmittance"]);
-                notes.push(
-                    "diffusetransmission as lambert of its reflectance (no transmission)".into(),
-                );
                 factor = Rgb::splat(scale);
-                lambert(reflectance * scale)
+                let unit = |c: Rgb| Rgb::new(c.r.min(1.0), c.g.min(1.0), c.b.min(1.0));
+                diffuse_transmission(unit(reflectance * scale), unit(transmittance * scale))
             }
-            "coatedconductor" | "measured" | "mix" | "hair" | "subsurface" | "interface" => {
+            "mix" => return self.mix(loc, name, p),
+            "coatedconductor" | "measured" | "hair" | "subsurface" | "interface" => {
                 let kd = match p.params.iter().any(|q| q.name == "reflectance") {
                     true => albedo(self, "reflectance", Rgb::splat(0.5))?,
                     false => Rgb::splat(0.5),
@@ -313,6 +315,48 @@ impl Importer {
         let index = self.builder.material(&origin, material)?;
         self.material_textures
             .push(texture.map(|(path, scale, loc)| (path, scale * factor, loc)));
+        Ok(index)
+    }
+
+    /// pbrt-v4's MixMaterial: two named materials and the probability `amount` of the second
+    /// (module `scene::mix`).
+    fn mix(&mut self, loc: Loc, name: &str, p: &ParamList) -> Result<u32, SceneError> {
+        let names = match p.params.iter().find(|q| q.name == "materials") {
+            Some(q) => match &q.values {
+                Values::Strs(v) if q.ty == ParamType::Str && v.len() == 2 => v.clone(),
+                _ => {
+                    return Err(self.at(
+                        Loc {
+                            line: q.line,
+                            ..loc
+                        },
+                        "mix: \"string materials\" must name two materials".to_string(),
+                    ))
+                }
+            },
+            None => {
+                return Err(self.at(loc, "mix without \"string materials\"".to_string()));
+            }
+        };
+        p.mark_used(&["materials"]);
+        let mut materials = [0u32; 2];
+        for (slot, m) in materials.iter_mut().zip(&names) {
+            *slot = *self
+                .named_materials
+                .get(m)
+                .ok_or_else(|| self.at(loc, format!("mix: no material named '{}'", snippet(m))))?;
+        }
+        let amount = self.float_param(loc, p, "amount", 0.5)?.unwrap_or(0.5);
+        if !(0.0..=1.0).contains(&amount) {
+            return Err(self.at(loc, format!("mix: amount {amount} is not in [0, 1]")));
+        }
+        let mix = Mix {
+            materials,
+            amount,
+            amount_texture: None,
+        };
+        let index = self.builder.mix(name.to_string(), mix);
+        self.material_textures.push(None);
         Ok(index)
     }
 
@@ -425,6 +469,13 @@ fn phong(kd: Rgb, ks: Rgb, exponent: f32) -> (&'static str, Params) {
         .with_color("ks", ks)
         .with_number("exponent", exponent);
     ("phong", params)
+}
+
+fn diffuse_transmission(r: Rgb, t: Rgb) -> (&'static str, Params) {
+    let params = Params::new()
+        .with_color("reflectance", r)
+        .with_color("transmittance", t);
+    ("diffusetransmission", params)
 }
 
 fn mirror(ks: Rgb) -> (&'static str, Params) {
