@@ -22,6 +22,7 @@
 //! Mitsuba 3 offsets by (1 + max |p_i|) 1500 2^-24, 2.9e-4 there, so to it every crossing of a
 //! bulb's wall (outer face wound outward, inner face towards the hollow) looks like entering.
 
+use super::fresnel;
 use super::params::{number, BsdfError, EnergyExcess, ParamRange, ParamReader, ParamSpec, Params};
 use super::{reflect_local, Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobes, TransportMode};
 use crate::color::Rgb;
@@ -32,26 +33,6 @@ use glam::Vec3;
 pub struct Glass {
     /// Index of refraction inside (the side the normal points away from) over outside.
     pub ior: f32,
-}
-
-/// Unpolarised Fresnel reflectance for light arriving at `cos_i` (local z of the incident
-/// direction, negative from inside) on an interface of relative index `eta` = n_inside /
-/// n_outside.
-pub fn fresnel_dielectric(cos_i: f32, eta: f32) -> f32 {
-    let (cos_i, eta) = if cos_i < 0.0 {
-        (-cos_i, 1.0 / eta)
-    } else {
-        (cos_i, eta)
-    };
-    let cos_i = cos_i.min(1.0);
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let parallel = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    let perpendicular = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    0.5 * (parallel * parallel + perpendicular * perpendicular)
 }
 
 /// Refraction of local `w` through the interface; `eta` = n_inside / n_outside. Returns the
@@ -120,7 +101,7 @@ impl Bxdf for Glass {
     #[inline]
     fn sample(&self, wo: Vec3, u: [f32; 3], mode: TransportMode) -> Option<BsdfSample> {
         let ior = self.ior;
-        let reflectance = fresnel_dielectric(wo.z, ior);
+        let reflectance = fresnel::dielectric(wo.z, ior);
         if u[0] < reflectance {
             let wi = reflect_local(wo);
             // f * |cos| / pdf = 1: the Fresnel weight cancels its own choice probability.

@@ -42,7 +42,9 @@ use crate::frame::Frame;
 use glam::Vec3;
 
 mod bxdf;
+pub mod fresnel;
 mod lobe;
+pub mod microfacet;
 mod params;
 #[macro_use]
 mod registry;

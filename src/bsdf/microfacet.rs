@@ -1,0 +1,209 @@
+//! The Trowbridge-Reitz (GGX) microfacet distribution, isotropic or anisotropic, as pbrt-v4
+//! uses it: the normal distribution D, Smith's height-correlated masking-shadowing G, and the
+//! distribution of visible normals with Heitz's (2018) sampler. Everything is in the local
+//! shading frame, z up.
+
+use glam::Vec3;
+use std::f32::consts::PI;
+
+/// Below this alpha on both axes a surface is a delta (pbrt-v4's threshold): the lobe is far
+/// narrower than any pixel sees, and f32 no longer represents D.
+const SMOOTH_ALPHA: f32 = 1e-3;
+
+/// The Trowbridge-Reitz distribution of microfacet normals, with roughness `alpha_x` along
+/// the frame's x axis and `alpha_y` along y.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TrowbridgeReitz {
+    pub alpha_x: f32,
+    pub alpha_y: f32,
+}
+
+impl TrowbridgeReitz {
+    /// A distribution with these alphas; alphas below 1e-4 are raised to it (pbrt-v4's
+    /// floor), where D and its sampler stay finite.
+    pub fn new(alpha_x: f32, alpha_y: f32) -> Self {
+        TrowbridgeReitz {
+            alpha_x: alpha_x.max(1e-4),
+            alpha_y: alpha_y.max(1e-4),
+        }
+    }
+
+    /// pbrt-v4's `remaproughness`: a user's perceptually linear roughness to alpha.
+    pub fn roughness_to_alpha(roughness: f32) -> f32 {
+        roughness.max(0.0).sqrt()
+    }
+
+    /// So narrow that the surface is treated as perfectly smooth (a delta lobe).
+    pub fn effectively_smooth(&self) -> bool {
+        self.alpha_x.max(self.alpha_y) < SMOOTH_ALPHA
+    }
+
+    /// The density of microfacet normals `wm` (unit) per projected solid angle: D(wm) with
+    /// the integral of D(wm) cos(theta_m) over the hemisphere equal to 1. Symmetric in the
+    /// sign of `wm.z`.
+    pub fn d(&self, wm: Vec3) -> f32 {
+        // 1 / (pi ax ay cos^4 (1 + tan^2 (cos^2 phi / ax^2 + sin^2 phi / ay^2))^2), written
+        // without angles: the denominator is (z^2 + x^2/ax^2 + y^2/ay^2)^2 for a unit wm.
+        if wm.z == 0.0 {
+            return 0.0;
+        }
+        let x = wm.x / self.alpha_x;
+        let y = wm.y / self.alpha_y;
+        let s = x * x + y * y + wm.z * wm.z;
+        1.0 / (PI * self.alpha_x * self.alpha_y * s * s)
+    }
+
+    /// Smith's auxiliary function Lambda(w): G1(w) = 1 / (1 + Lambda(w)).
+    pub fn lambda(&self, w: Vec3) -> f32 {
+        let z2 = w.z * w.z;
+        if z2 == 0.0 {
+            return f32::INFINITY;
+        }
+        // alpha^2(phi) tan^2(theta) = (ax^2 x^2 + ay^2 y^2) / z^2.
+        let a2t2 = ((self.alpha_x * w.x).powi(2) + (self.alpha_y * w.y).powi(2)) / z2;
+        // (sqrt(1 + a) - 1) / 2 = a / (2 (sqrt(1 + a) + 1)), which keeps its digits at small a.
+        a2t2 / (2.0 * ((1.0 + a2t2).sqrt() + 1.0))
+    }
+
+    /// The fraction of microfacets visible from `w`.
+    pub fn g1(&self, w: Vec3) -> f32 {
+        1.0 / (1.0 + self.lambda(w))
+    }
+
+    /// Height-correlated masking-shadowing of `wo` and `wi` (pbrt-v4; Heitz 2014).
+    pub fn g(&self, wo: Vec3, wi: Vec3) -> f32 {
+        1.0 / (1.0 + self.lambda(wo) + self.lambda(wi))
+    }
+
+    /// The density of visible normals from `w` per solid angle of `wm` (upper hemisphere):
+    /// D_w(wm) = G1(w) / |cos theta| D(wm) max(0, w . wm), what [`Self::sample_wm`] samples.
+    /// A `w` below the surface is taken as flipped up, as the sampler takes it.
+    pub fn pdf(&self, w: Vec3, wm: Vec3) -> f32 {
+        let cos = w.z.abs();
+        let visible = w.dot(wm) * w.z.signum();
+        if cos == 0.0 || visible <= 0.0 {
+            return 0.0;
+        }
+        self.g1(w) / cos * self.d(wm) * visible
+    }
+
+    /// A microfacet normal visible from `w` (either hemisphere; the result is in the upper
+    /// one, on the side `w` sees when `w` is flipped up), drawn from D_w by Heitz's (2018)
+    /// sampler: stretch to the unit-roughness configuration, sample the projected hemisphere,
+    /// unstretch.
+    pub fn sample_wm(&self, w: Vec3, u: [f32; 2]) -> Vec3 {
+        let mut wh = Vec3::new(self.alpha_x * w.x, self.alpha_y * w.y, w.z).normalize();
+        if wh.z < 0.0 {
+            wh = -wh;
+        }
+        let t1 = if wh.z < 0.99999 {
+            Vec3::Z.cross(wh).normalize()
+        } else {
+            Vec3::X
+        };
+        let t2 = wh.cross(t1);
+        // A uniform point on the unit disk, its lower half squeezed onto the visible part.
+        let r = u[0].sqrt();
+        let phi = 2.0 * PI * u[1];
+        let (sin_phi, cos_phi) = phi.sin_cos();
+        let px = r * cos_phi;
+        let h = (1.0 - px * px).max(0.0).sqrt();
+        let s = 0.5 * (1.0 + wh.z);
+        let py = (1.0 - s) * h + s * (r * sin_phi);
+        let pz = (1.0 - px * px - py * py).max(0.0).sqrt();
+        let nh = t1 * px + t2 * py + wh * pz;
+        Vec3::new(self.alpha_x * nh.x, self.alpha_y * nh.y, nh.z.max(1e-6)).normalize()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sphere_points(n: usize) -> impl Iterator<Item = Vec3> {
+        // A Fibonacci sphere: even coverage without a random stream.
+        (0..n).map(move |i| {
+            let z = 1.0 - (2.0 * i as f32 + 1.0) / n as f32;
+            let r = (1.0 - z * z).sqrt();
+            let phi = i as f32 * 2.399_963;
+            Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+    }
+
+    /// Midpoint quadrature over the upper hemisphere in (cos theta, phi), f64.
+    fn hemisphere_integral(f: impl Fn(Vec3) -> f64, n: usize) -> f64 {
+        let mut sum = 0.0;
+        for i in 0..n {
+            let z = (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).sqrt();
+            for j in 0..2 * n {
+                let phi = (j as f64 + 0.5) / (2 * n) as f64 * std::f64::consts::TAU;
+                let w = Vec3::new((r * phi.cos()) as f32, (r * phi.sin()) as f32, z as f32);
+                sum += f(w);
+            }
+        }
+        sum * std::f64::consts::TAU / (2 * n * n) as f64
+    }
+
+    #[test]
+    fn projected_area_of_the_normals_is_one() {
+        for (ax, ay) in [(0.3, 0.3), (0.6, 0.15), (1.0, 1.0)] {
+            let m = TrowbridgeReitz::new(ax, ay);
+            let total = hemisphere_integral(|wm| m.d(wm) as f64 * wm.z as f64, 800);
+            assert!((total - 1.0).abs() < 2e-3, "{ax} {ay}: {total}");
+        }
+    }
+
+    #[test]
+    fn visible_normal_pdf_integrates_to_one() {
+        let m = TrowbridgeReitz::new(0.4, 0.2);
+        for w in [
+            Vec3::Z,
+            Vec3::new(0.6, 0.0, 0.8),
+            Vec3::new(-0.3, 0.9, 0.3).normalize(),
+        ] {
+            let total = hemisphere_integral(|wm| m.pdf(w, wm) as f64, 800);
+            assert!((total - 1.0).abs() < 2e-3, "{w}: {total}");
+        }
+    }
+
+    #[test]
+    fn sampled_normals_face_up_and_follow_the_visible_density() {
+        let m = TrowbridgeReitz::new(0.5, 0.25);
+        let w = Vec3::new(0.5, -0.4, 0.3).normalize();
+        // The mean of wm.z under D_w, sampled against quadrature.
+        let n = 200;
+        let mut mean = 0.0f64;
+        for i in 0..n {
+            for j in 0..n {
+                let u = [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32];
+                let wm = m.sample_wm(w, u);
+                assert!(wm.z > 0.0 && (wm.length() - 1.0).abs() < 1e-4);
+                mean += wm.z as f64;
+            }
+        }
+        mean /= (n * n) as f64;
+        let expected = hemisphere_integral(|wm| m.pdf(w, wm) as f64 * wm.z as f64, 800);
+        assert!((mean - expected).abs() < 2e-3, "{mean} vs {expected}");
+    }
+
+    #[test]
+    fn masking_is_symmetric_and_bounded() {
+        let m = TrowbridgeReitz::new(0.3, 0.7);
+        for w in sphere_points(64) {
+            let g1 = m.g1(w);
+            assert!((0.0..=1.0).contains(&g1));
+            assert_eq!(m.lambda(w), m.lambda(-w));
+            assert!(m.g(w, Vec3::Z) <= g1 + 1e-6);
+        }
+        assert_eq!(m.g1(Vec3::Z), 1.0);
+        assert_eq!(m.g1(Vec3::X), 0.0);
+    }
+
+    #[test]
+    fn smoothness_and_remapping() {
+        assert!(TrowbridgeReitz::new(0.0, 0.0).effectively_smooth());
+        assert!(!TrowbridgeReitz::new(0.0, 0.01).effectively_smooth());
+        assert_eq!(TrowbridgeReitz::roughness_to_alpha(0.25), 0.5);
+    }
+}
