@@ -43,6 +43,7 @@ use glam::Vec3;
 
 mod bxdf;
 pub mod fresnel;
+mod layer;
 mod lobe;
 pub mod microfacet;
 mod params;
@@ -50,6 +51,7 @@ mod params;
 mod registry;
 
 pub use bxdf::{Bxdf, BxdfType};
+pub use layer::{Coating, Roughness};
 pub use lobe::{Lobe, LobeShape, Lobes, PolarBound, PolarInterval};
 pub use params::{
     BsdfError, EnergyExcess, EnergyFix, ParamKind, ParamProblem, ParamRange, ParamReader,
@@ -65,6 +67,10 @@ registry! {
     glass::Glass { ior: f32 },
     /// pbrt-v4's lambertian reflection and transmission.
     diffuse_transmission::DiffuseTransmission { r: Rgb, t: Rgb },
+    /// pbrt-v4's coateddiffuse by the deterministic layered model of layer.rs.
+    coated_diffuse::CoatedDiffuse { r: Rgb, coating: Coating },
+    /// pbrt-v4's coatedconductor by the deterministic layered model of layer.rs.
+    coated_conductor::CoatedConductor { eta: Rgb, k: Rgb, reflectance: Rgb, roughness: Roughness, coating: Coating },
 }
 
 /// A named material: how it scatters and what it emits (radiance, one-sided, on the side the
