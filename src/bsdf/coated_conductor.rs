@@ -196,14 +196,20 @@ impl Bxdf for CoatedConductor {
 
     fn albedo(&self) -> Albedo {
         Albedo {
-            kd: Rgb::BLACK,
-            ks: self.reflectance,
+            kd: self.reflectance,
+            ks: Rgb::BLACK,
         }
     }
 
+    /// A texture replaces the reflectance only of a conductor given by one (a black texel
+    /// stays a reflectance, not a switch to `eta` and `k`).
     fn with_albedo(&self, albedo: Albedo) -> Self {
+        if self.reflectance.is_black() {
+            return *self;
+        }
+        let r = albedo.kd;
         CoatedConductor {
-            reflectance: albedo.ks,
+            reflectance: Rgb::new(r.r.max(1e-6), r.g.max(1e-6), r.b.max(1e-6)),
             ..*self
         }
     }

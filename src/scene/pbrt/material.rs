@@ -1,14 +1,14 @@
-//! pbrt-v4's materials mapped onto vmerge's four BSDFs (the table in docs/pbrt.md, "Materials"): the Material,
-//! MakeNamedMaterial and NamedMaterial directives, the mapping of each material type, and its
-//! arithmetic (Fresnel reflectance at normal incidence, roughness to a Phong exponent, the RGB
-//! values of pbrt's named metal spectra). The mapping conserves energy for reflectances up to
-//! 1 (a coated diffuse's kd = reflectance x (1 - F0) beside ks = F0); the builder's rule
-//! handles what a file states beyond that.
+//! pbrt-v4's materials mapped onto vmerge's BSDFs (the table in docs/pbrt.md, "Materials"): the
+//! Material, MakeNamedMaterial and NamedMaterial directives, the mapping of each material type,
+//! and its arithmetic (Fresnel reflectance at normal incidence, roughness to a Phong exponent,
+//! the RGB values of pbrt's named metal spectra). `diffusetransmission`, `coateddiffuse`,
+//! `coatedconductor` and `mix` map to their own models. Reflectances are clamped to [0, 1] as
+//! pbrt-v4 clamps them; the builder's rule handles what a file states beyond that.
 
 use super::import::{Importer, Loc};
 use super::parser::{Directive, ParamList, ParamType, Spectrum, Values};
 use super::textures::Tex;
-use crate::bsdf::{EnergyFix, MaterialKind, Params};
+use crate::bsdf::{EnergyFix, MaterialKind, ParamValue, Params};
 use crate::color::Rgb;
 use crate::files::snippet;
 use crate::scene::builder::{round3, MaterialDesc, Origin};
@@ -187,17 +187,42 @@ impl Importer {
             "diffuse" => lambert(albedo(self, "reflectance", Rgb::splat(0.5))?),
             "coateddiffuse" => {
                 let reflectance = albedo(self, "reflectance", Rgb::splat(0.5))?;
-                let eta = self.float_param(loc, p, "eta", 1.5)?.unwrap_or(1.5);
-                let alpha = self.alpha(loc, p)?;
-                let f0 = dielectric_f0(eta);
-                // The coating's layer parameters have no counterpart in Phong.
-                p.mark_used(&["thickness", "g", "maxdepth", "nsamples", "albedo"]);
-                let exponent = phong_exponent(alpha);
-                notes.push(format!(
-                    "coateddiffuse as Phong: kd = reflectance x (1 - F0), ks = F0 = {f0:.3}, exponent {exponent:.0} from alpha {alpha}"
-                ));
-                factor = Rgb::splat(1.0 - f0);
-                phong(reflectance * (1.0 - f0), Rgb::splat(f0), exponent)
+                let mut params = self.coating(loc, p, "")?;
+                params.set("eta", ParamValue::Number(self.eta_param(loc, p, "eta")?));
+                (
+                    "coateddiffuse",
+                    params.with_color("reflectance", unit(reflectance)),
+                )
+            }
+            "coatedconductor" => {
+                let given = |n: &str| p.params.iter().any(|q| q.name == n);
+                if given("reflectance") && (given("conductor.eta") || given("conductor.k")) {
+                    return Err(self.at(
+                        loc,
+                        "coatedconductor: \"reflectance\" and \"conductor.eta\"/\"conductor.k\" exclude each other".into(),
+                    ));
+                }
+                let mut params = self.coating(loc, p, "interface.")?;
+                params.set(
+                    "interface.eta",
+                    ParamValue::Number(self.eta_param(loc, p, "interface.eta")?),
+                );
+                let (u, v) = self.roughnesses(loc, p, "conductor.")?;
+                params = params
+                    .with_number("conductor.uroughness", u)
+                    .with_number("conductor.vroughness", v);
+                if given("reflectance") {
+                    let r = albedo(self, "reflectance", Rgb::splat(0.5))?;
+                    params = params.with_color("reflectance", unit(r));
+                } else {
+                    let cu = |n| named_spectrum(n).unwrap_or(Rgb::WHITE);
+                    let eta = self.constant_spectrum(loc, p, "conductor.eta", cu("metal-Cu-eta"))?;
+                    let k = self.constant_spectrum(loc, p, "conductor.k", cu("metal-Cu-k"))?;
+                    params = params
+                        .with_color("conductor.eta", eta)
+                        .with_color("conductor.k", k);
+                }
+                ("coatedconductor", params)
             }
             "conductor" => {
                 let alpha = self.alpha(loc, p)?;
@@ -265,11 +290,10 @@ impl Importer {
                 // pbrt-v4 scales both and clamps each to [0, 1].
                 let scale = p.float("scale", 1.0).map_err(&pe)?;
                 factor = Rgb::splat(scale);
-                let unit = |c: Rgb| Rgb::new(c.r.min(1.0), c.g.min(1.0), c.b.min(1.0));
                 diffuse_transmission(unit(reflectance * scale), unit(transmittance * scale))
             }
             "mix" => return self.mix(loc, name, p),
-            "coatedconductor" | "measured" | "hair" | "subsurface" | "interface" => {
+            "measured" | "hair" | "subsurface" | "interface" => {
                 let kd = match p.params.iter().any(|q| q.name == "reflectance") {
                     true => albedo(self, "reflectance", Rgb::splat(0.5))?,
                     false => Rgb::splat(0.5),
@@ -316,6 +340,65 @@ impl Importer {
         self.material_textures
             .push(texture.map(|(path, scale, loc)| (path, scale * factor, loc)));
         Ok(index)
+    }
+
+    /// A roughness pair as pbrt-v4 reads it under `prefix`: `uroughness` and `vroughness`,
+    /// each defaulting to `roughness`, then 0.
+    fn roughnesses(
+        &mut self,
+        loc: Loc,
+        p: &ParamList,
+        prefix: &str,
+    ) -> Result<(f32, f32), SceneError> {
+        let mut get = |im: &mut Importer, n: &str| im.float_param(loc, p, &format!("{prefix}{n}"), 0.0);
+        let common = get(self, "roughness")?;
+        let u = get(self, "uroughness")?.or(common).unwrap_or(0.0);
+        let v = get(self, "vroughness")?.or(common).unwrap_or(0.0);
+        for r in [u, v] {
+            if !(r >= 0.0 && r.is_finite()) {
+                return Err(self.at(loc, format!("{prefix}roughness {r} is negative")));
+            }
+        }
+        Ok((u, v))
+    }
+
+    /// The parameters of a layered material's coating (its interface's roughness under
+    /// `prefix`, the slab and pbrt's walk), for the coated types.
+    fn coating(&mut self, loc: Loc, p: &ParamList, prefix: &str) -> Result<Params, SceneError> {
+        let pe = self.pe(loc.file);
+        let (u, v) = self.roughnesses(loc, p, prefix)?;
+        let thickness = self.float_param(loc, p, "thickness", 0.01)?.unwrap_or(0.01);
+        if !(thickness >= 0.0 && thickness.is_finite()) {
+            return Err(self.at(loc, format!("thickness {thickness} is negative")));
+        }
+        let medium = self.constant_spectrum(loc, p, "albedo", Rgb::BLACK)?;
+        let max_depth = p.int("maxdepth", 10).map_err(&pe)?;
+        // The model is deterministic (bsdf/layer.rs): pbrt's samples per evaluation and the
+        // phase function's asymmetry (the medium's scattering is taken as forward) do not
+        // enter it.
+        p.mark_used(&["nsamples", "g"]);
+        let remap = p.bool("remaproughness", true).map_err(&pe)?;
+        Ok(Params::new()
+            .with_number(&format!("{prefix}uroughness"), u)
+            .with_number(&format!("{prefix}vroughness"), v)
+            .with_number("remaproughness", if remap { 1.0 } else { 0.0 })
+            .with_number("thickness", thickness)
+            .with_color("albedo", unit(medium))
+            .with_number("maxdepth", max_depth.clamp(0, 1 << 20) as f32))
+    }
+
+    /// An interface's index: a float, or a spectrum (named glasses by their mean); 1.5 when
+    /// absent, and pbrt's 0 taken as 1.
+    fn eta_param(&mut self, loc: Loc, p: &ParamList, name: &str) -> Result<f32, SceneError> {
+        let eta = match p.params.iter().find(|q| q.name == name).map(|q| q.ty) {
+            None => 1.5,
+            Some(ParamType::Float) => self.float_param(loc, p, name, 1.5)?.unwrap_or(1.5),
+            Some(_) => self.constant_spectrum(loc, p, name, Rgb::splat(1.5))?.average(),
+        };
+        if eta.is_nan() || eta < 0.0 {
+            return Err(self.at(loc, format!("{name} {eta} is negative")));
+        }
+        Ok(if eta == 0.0 { 1.0 } else { eta })
     }
 
     /// pbrt-v4's MixMaterial: two named materials and the probability `amount` of the second
@@ -469,6 +552,11 @@ fn phong(kd: Rgb, ks: Rgb, exponent: f32) -> (&'static str, Params) {
         .with_color("ks", ks)
         .with_number("exponent", exponent);
     ("phong", params)
+}
+
+/// Each channel clamped to [0, 1], as pbrt-v4 clamps reflectances.
+fn unit(c: Rgb) -> Rgb {
+    Rgb::new(c.r.clamp(0.0, 1.0), c.g.clamp(0.0, 1.0), c.b.clamp(0.0, 1.0))
 }
 
 fn diffuse_transmission(r: Rgb, t: Rgb) -> (&'static str, Params) {
