@@ -197,7 +197,10 @@ fn layered_costs() {
                     .with_number("exponent", 50.0),
             ),
         ),
-        ("diffusetransmission", kind("diffusetransmission", Params::new())),
+        (
+            "diffusetransmission",
+            kind("diffusetransmission", Params::new()),
+        ),
         ("coateddiffuse smooth", kind("coateddiffuse", Params::new())),
         (
             "coateddiffuse rough",
@@ -247,6 +250,9 @@ fn layered_costs() {
     let phong = median(per_call[0].clone());
     for ((name, _), times) in kinds.iter().zip(per_call) {
         let t = median(times);
-        println!("{name:22} {t:6.1} ns per scattering event, {:.2} x phong", t / phong);
+        println!(
+            "{name:22} {t:6.1} ns per scattering event, {:.2} x phong",
+            t / phong
+        );
     }
 }

@@ -765,3 +765,11 @@ fn weights_sum_to_one_with_point_directional_and_sky_lights() {
         }
     }
 }
+
+/// pbrt-v4's diffuse transmission, rough coated diffuse, coated conductor and a mix of coated
+/// diffuses: paths through their lobes (sampled non-delta) have weights that sum to 1.
+#[test]
+fn weights_sum_to_one_with_layered_and_mixed_materials() {
+    let (_, merged) = check_scene("layered", Aim::Disc);
+    assert!(merged > 0, "no path gave a merge any weight");
+}

@@ -86,8 +86,8 @@ impl CoatedConductor {
         let t = c.transmittance(wo, inner);
         let fc = self.conductor_fresnel(inner.z);
         let f = c.fresnel(wo.z);
-        // T includes the slab's transmittance A once with 1 - F; a round trip keeps F A^2.
-        let a = t * (1.0 / (1.0 - f).max(1e-6));
+        // A round trip between base and top keeps F A^2, A the slab's transmittance.
+        let a = c.slab(inner);
         let n = c.bottom_bounces();
         let series = |x: f32| {
             if x < 1.0 {

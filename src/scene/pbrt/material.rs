@@ -34,12 +34,6 @@ pub fn phong_exponent(alpha: f32) -> f32 {
     (2.0 / (alpha * alpha) - 2.0).clamp(1.0, MAX_EXPONENT)
 }
 
-/// Reflectance at normal incidence of a dielectric interface of relative index `eta`.
-pub fn dielectric_f0(eta: f32) -> f32 {
-    let r = (eta - 1.0) / (eta + 1.0);
-    r * r
-}
-
 /// Reflectance at normal incidence of a conductor, per channel:
 /// ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2).
 pub fn conductor_f0(eta: Rgb, k: Rgb) -> Rgb {
@@ -199,7 +193,7 @@ impl Importer {
                 if given("reflectance") && (given("conductor.eta") || given("conductor.k")) {
                     return Err(self.at(
                         loc,
-                        "coatedconductor: \"reflectance\" and \"conductor.eta\"/\"conductor.k\" exclude each other".into(),
+                        "coatedconductor: \"reflectance\" and \"conductor.eta\"/\"conductor.k\" exclude each other".to_string(),
                     ));
                 }
                 let mut params = self.coating(loc, p, "interface.")?;
@@ -350,7 +344,7 @@ impl Importer {
         p: &ParamList,
         prefix: &str,
     ) -> Result<(f32, f32), SceneError> {
-        let mut get = |im: &mut Importer, n: &str| im.float_param(loc, p, &format!("{prefix}{n}"), 0.0);
+        let get = |im: &mut Importer, n: &str| im.float_param(loc, p, &format!("{prefix}{n}"), 0.0);
         let common = get(self, "roughness")?;
         let u = get(self, "uroughness")?.or(common).unwrap_or(0.0);
         let v = get(self, "vroughness")?.or(common).unwrap_or(0.0);
@@ -580,7 +574,6 @@ mod tests {
 
     #[test]
     fn fresnel_and_exponents() {
-        assert!((dielectric_f0(1.5) - 0.04).abs() < 1e-6);
         // A conductor with k = 0 is a dielectric.
         let f = conductor_f0(Rgb::splat(1.5), Rgb::BLACK);
         assert!((f.r - 0.04).abs() < 1e-6);
