@@ -4,7 +4,10 @@
 //! gives it area-weighted vertex normals and planar uvs (one texture period per 100 units), and
 //! each material a texture of its own kd with a faint pattern (+-1%), so the light paths stay
 //! those of the flat scene and the cost is the lookups': 64 x 64 texels (all 35 fit in the
-//! caches) or 512 x 512 (110 MB, where a lookup waits for memory). Each round renders one iteration of each variant in turn; the figures
+//! caches) or 512 x 512 (110 MB, where a lookup waits for memory). Then every surface of one
+//! type: Phong (kd 0.3, ks 0.6, n 20) next to a rough conductor and a rough dielectric of
+//! the same lobe width (Trowbridge-Reitz alpha 0.3). Each round renders one iteration of each
+//! variant in turn; the figures
 //! are the medians over rounds of the time of each variant over the flat one's in the same
 //! round. Run: `cargo bench --bench surfaces`.
 
@@ -13,7 +16,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 use vmerge::accel::AccelKind;
-use vmerge::bsdf::Albedo;
+use vmerge::bsdf::{Albedo, MaterialKind, Params};
 use vmerge::color::Rgb;
 use vmerge::integrator::RenderContext;
 use vmerge::options::{RenderOptions, Technique};
@@ -57,9 +60,9 @@ fn texture(kd: Rgb, n: u32) -> Texture {
     Texture::new(n, n, texels).expect("a square texture")
 }
 
-/// The room with or without shading normals, and with textures of `texture_size` texels a
-/// side (0: none).
-fn variant(path: &Path, normals: bool, texture_size: u32) -> Scene {
+/// The room with or without shading normals, with textures of `texture_size` texels a side
+/// (0: none), and with every material that does not emit of type `kind` where given.
+fn variant(path: &Path, normals: bool, texture_size: u32, kind: Option<&MaterialKind>) -> Scene {
     let textured = texture_size > 0;
     let options = LoadOptions {
         accel: AccelKind::default_kind(),
@@ -67,6 +70,11 @@ fn variant(path: &Path, normals: bool, texture_size: u32) -> Scene {
         shading_normals: true,
     };
     let mut parts = scene::load_parts(path, &options).expect("the conference room loads");
+    if let Some(kind) = kind {
+        for m in parts.materials.iter_mut().filter(|m| !m.is_emissive()) {
+            m.kind = kind.clone();
+        }
+    }
     let shading = vertex_normals(&parts);
     parts.shading = MeshShading {
         triangle_normals: if normals {
@@ -91,6 +99,7 @@ fn variant(path: &Path, normals: bool, texture_size: u32) -> Scene {
             .map(|i| MaterialTextures {
                 kd: Some(i),
                 ks: None,
+                roughness: None,
             })
             .collect();
     }
@@ -113,17 +122,36 @@ fn main() {
         eprintln!("skipping: the conference room is absent");
         return;
     }
+    // Every surface Phong, then each microfacet type of about the same lobe width
+    // (alpha 0.3, Phong n = 2 / alpha^2 - 2 = 20).
+    let kind = |name: &str, params: Params| MaterialKind::from_params(name, &params).unwrap();
+    let roughness = |p: Params| {
+        p.with_number("roughness", 0.3)
+            .with_number("remaproughness", 0.0)
+    };
+    let phong = kind(
+        "phong",
+        Params::new()
+            .with_color("kd", Rgb::splat(0.3))
+            .with_color("ks", Rgb::splat(0.6))
+            .with_number("exponent", 20.0),
+    );
+    let conductor = kind("conductor", roughness(Params::new()));
+    let dielectric = kind("dielectric", roughness(Params::new()));
     let variants = [
-        ("flat", false, 0),
-        ("shading normals", true, 0),
-        ("textures 64^2", false, 64),
-        ("textures 512^2", false, 512),
-        ("normals + 512^2", true, 512),
+        ("flat", false, 0, None),
+        ("shading normals", true, 0, None),
+        ("textures 64^2", false, 64, None),
+        ("textures 512^2", false, 512, None),
+        ("normals + 512^2", true, 512, None),
+        ("all phong n 20", false, 0, Some(&phong)),
+        ("all conductor", false, 0, Some(&conductor)),
+        ("all dielectric", false, 0, Some(&dielectric)),
     ];
     let names: Vec<&str> = variants.iter().map(|v| v.0).collect();
     let scenes: Vec<Scene> = variants
         .iter()
-        .map(|&(_, n, t)| variant(&path, n, t))
+        .map(|&(_, n, t, k)| variant(&path, n, t, k))
         .collect();
     let texture_bytes: usize = scenes[3].textures.iter().map(|t| t.bytes()).sum();
     println!(

@@ -1,7 +1,8 @@
 //! The MIS weights of all techniques that can sample one fixed full path sum to 1.
 //!
-//! Paths of 2 to 8 segments are generated in the shipped scenes (diffuse, Phong, mirror and
-//! glass vertices; area, point, directional and sky lights) by a random walk from the camera
+//! Paths of 2 to 8 segments are generated in the shipped scenes (diffuse, Phong, mirror,
+//! glass, rough conductor, rough dielectric and thin dielectric vertices; area, point,
+//! directional and sky lights) by a random walk from the camera
 //! closed by a light sample. For every way of splitting such a path into a light and an eye
 //! sub-path, the sub-paths' MIS quantities are built with the library's recursions
 //! (`BptVertex`, 000 eqs. (2.50)-(2.51); `VcmWeights`, 001 eqs. (31)-(47)) from the pdfs the
@@ -15,7 +16,7 @@
 mod common;
 
 use glam::Vec3;
-use vmerge::bsdf::{Bsdf, TransportMode};
+use vmerge::bsdf::{Bsdf, MaterialKind, TransportMode};
 use vmerge::integrator::mis::{
     self, BptStep, BptVertex, ConnectionPdfs, Gather, LightSamplePdfs, Neighbour, Power, VcmVertex,
     VcmWeights, VmHere, NO_DENSITY,
@@ -755,6 +756,28 @@ fn weights_sum_to_one_with_phong() {
 fn weights_sum_to_one_with_mirror_and_glass() {
     let (specular, _) = check_scene("cornell-spheres", Aim::Disc);
     assert!(specular > 20, "only {specular} paths had a specular vertex");
+}
+
+#[test]
+fn weights_sum_to_one_with_microfacet_conductors_and_dielectrics() {
+    let (specular, merged) = check_scene("microfacets", Aim::Disc);
+    assert!(specular > 10, "only {specular} paths had a specular vertex");
+    assert!(merged > 0, "no path gave a merge any weight");
+    // The same paths (check_scene's seed and count): enough of them scatter on a rough lobe.
+    let (scene, all) = paths("microfacets", 7, 40, Aim::Disc);
+    let rough = |v: &Vertex| match *v {
+        Vertex::Surface {
+            material,
+            delta: false,
+            ..
+        } => matches!(
+            scene.material(material).kind,
+            MaterialKind::Conductor { .. } | MaterialKind::Dielectric { .. }
+        ),
+        _ => false,
+    };
+    let through = all.iter().filter(|p| p.vertices.iter().any(rough)).count();
+    assert!(through > 20, "only {through} paths scatter on a rough lobe");
 }
 
 #[test]

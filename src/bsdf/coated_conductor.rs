@@ -12,7 +12,8 @@
 //! out, its pdf carried to the outside solid angle (cos / (eta^2 cos')); a direction caught by
 //! total internal reflection is no sample.
 
-use super::layer::{count, Coating, Roughness};
+use super::layer::{count, read_roughness, Coating};
+use super::microfacet::Roughness;
 use super::params::{
     clamp_to_one, color, number, BsdfError, EnergyExcess, ParamKind, ParamRange, ParamReader,
     ParamSpec, ParamValue, Params,
@@ -150,7 +151,7 @@ impl BxdfType for CoatedConductor {
             eta: p.color("conductor.eta")?,
             k: p.color("conductor.k")?,
             reflectance: p.color("reflectance")?,
-            roughness: Roughness::read(
+            roughness: read_roughness(
                 p,
                 [
                     "conductor.roughness",
@@ -160,7 +161,7 @@ impl BxdfType for CoatedConductor {
             )?,
             coating: Coating::new(
                 p.number(NAMES[3])?,
-                Roughness::read(p, [NAMES[0], NAMES[1], NAMES[2]])?,
+                read_roughness(p, [NAMES[0], NAMES[1], NAMES[2]])?,
                 p.number("thickness")?,
                 clamp_to_one(albedo),
                 count(p, "maxdepth")?,
@@ -198,6 +199,7 @@ impl Bxdf for CoatedConductor {
         Albedo {
             kd: self.reflectance,
             ks: Rgb::BLACK,
+            roughness: None,
         }
     }
 

@@ -8,7 +8,7 @@
 //! Sampling picks the top's lobe (a mirror when smooth) with its Fresnel share of the energy
 //! and a cosine lobe for the base otherwise; the pdfs are those of this mixture.
 
-use super::layer::{count, Coating, Roughness};
+use super::layer::{count, read_roughness, Coating};
 use super::params::{
     clamp_to_one, color, number, BsdfError, EnergyExcess, EnergyFix, ParamRange, ParamReader,
     ParamSpec, Params,
@@ -72,7 +72,7 @@ fn read_coating(p: &ParamReader, names: [&str; 4]) -> Result<Coating, BsdfError>
     let albedo = p.color("albedo")?;
     Ok(Coating::new(
         p.number(eta)?,
-        Roughness::read(p, [roughness, uroughness, vroughness])?,
+        read_roughness(p, [roughness, uroughness, vroughness])?,
         p.number("thickness")?,
         clamp_to_one(albedo),
         count(p, "maxdepth")?,
@@ -144,6 +144,7 @@ impl Bxdf for CoatedDiffuse {
         Albedo {
             kd: self.r,
             ks: Rgb::BLACK,
+            roughness: None,
         }
     }
 

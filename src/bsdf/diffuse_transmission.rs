@@ -72,6 +72,7 @@ impl Bxdf for DiffuseTransmission {
         Albedo {
             kd: self.r,
             ks: self.t,
+            roughness: None,
         }
     }
 

@@ -77,6 +77,7 @@ impl Bxdf for Glass {
         Albedo {
             kd: Rgb::BLACK,
             ks: Rgb::BLACK,
+            roughness: None,
         }
     }
 

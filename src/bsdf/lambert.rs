@@ -43,6 +43,7 @@ impl Bxdf for Lambert {
         Albedo {
             kd: self.kd,
             ks: Rgb::BLACK,
+            roughness: None,
         }
     }
 

@@ -29,52 +29,28 @@
 //! lost rather than re-reflected. `nsamples` has no meaning for a deterministic model.
 
 use super::fresnel;
-use super::microfacet::TrowbridgeReitz;
+use super::microfacet::{Roughness, TrowbridgeReitz};
 use super::params::{BsdfError, ParamReader};
 use crate::color::Rgb;
 use glam::Vec3;
 
-/// A surface's roughness as pbrt-v4 states it, per axis, with its `remaproughness`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Roughness {
-    pub u: f32,
-    pub v: f32,
-    pub remap: bool,
-}
-
-impl Roughness {
-    pub const SMOOTH: Roughness = Roughness {
-        u: 0.0,
-        v: 0.0,
-        remap: true,
+/// Reads a roughness under the names `names` (`roughness`, `uroughness`, `vroughness` with
+/// their prefixes) and `remaproughness`: an axis takes its own value where given, else the
+/// common one.
+pub fn read_roughness(p: &ParamReader, names: [&str; 3]) -> Result<Roughness, BsdfError> {
+    let common = p.number(names[0])?;
+    let axis = |name| -> Result<f32, BsdfError> {
+        if p.is_given(name) {
+            p.number(name)
+        } else {
+            Ok(common)
+        }
     };
-
-    /// Reads `roughness`, `uroughness` and `vroughness` under the names `names` (in that
-    /// order) and `remaproughness`: an axis takes its own value where it is positive, else the
-    /// common one.
-    pub fn read(p: &ParamReader, names: [&str; 3]) -> Result<Self, BsdfError> {
-        let common = p.number(names[0])?;
-        let axis = |name| -> Result<f32, BsdfError> {
-            let value = p.number(name)?;
-            Ok(if value > 0.0 { value } else { common })
-        };
-        Ok(Roughness {
-            u: axis(names[1])?,
-            v: axis(names[2])?,
-            remap: p.number("remaproughness")? != 0.0,
-        })
-    }
-
-    pub fn distribution(&self) -> TrowbridgeReitz {
-        let alpha = |r: f32| {
-            if self.remap {
-                TrowbridgeReitz::roughness_to_alpha(r)
-            } else {
-                r
-            }
-        };
-        TrowbridgeReitz::new(alpha(self.u), alpha(self.v))
-    }
+    Ok(Roughness {
+        u: axis(names[1])?,
+        v: axis(names[2])?,
+        remap: p.number("remaproughness")? != 0.0,
+    })
 }
 
 /// A count pbrt states as an integer (`maxdepth`), read as a number.

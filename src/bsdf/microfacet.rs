@@ -3,6 +3,7 @@
 //! distribution of visible normals with Heitz's (2018) sampler. Everything is in the local
 //! shading frame, z up.
 
+use super::params::{number, BsdfError, ParamRange, ParamReader, ParamSpec, Params};
 use glam::Vec3;
 use std::f32::consts::PI;
 
@@ -114,6 +115,78 @@ impl TrowbridgeReitz {
         let nh = t1 * px + t2 * py + wh * pz;
         Vec3::new(self.alpha_x * nh.x, self.alpha_y * nh.y, nh.z.max(1e-6)).normalize()
     }
+}
+
+/// A surface's roughness as scene files give it (pbrt-v4's parameters): `u` along the shading
+/// frame's x axis, `v` along y, each remapped to alpha by [`TrowbridgeReitz::roughness_to_alpha`]
+/// when `remap` (`remaproughness`) is set, taken as alpha otherwise.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Roughness {
+    pub u: f32,
+    pub v: f32,
+    pub remap: bool,
+}
+
+impl Roughness {
+    /// The parameters [`Roughness::read`] reads: `roughness` for both axes, `uroughness` and
+    /// `vroughness` in its place where given, `remaproughness` 1 (true) or 0.
+    pub const PARAMS: [ParamSpec; 4] = [
+        number("roughness", 0.0, ParamRange::NonNegative),
+        number("uroughness", 0.0, ParamRange::NonNegative),
+        number("vroughness", 0.0, ParamRange::NonNegative),
+        number("remaproughness", 1.0, ParamRange::NonNegative),
+    ];
+
+    pub(super) fn read(p: &ParamReader) -> Result<Self, BsdfError> {
+        let r = p.number("roughness")?;
+        let axis = |name| -> Result<f32, BsdfError> {
+            if p.is_given(name) {
+                p.number(name)
+            } else {
+                Ok(r)
+            }
+        };
+        Ok(Roughness {
+            u: axis("uroughness")?,
+            v: axis("vroughness")?,
+            remap: p.number("remaproughness")? != 0.0,
+        })
+    }
+
+    pub(super) fn write(&self, params: Params) -> Params {
+        params
+            .with_number("uroughness", self.u)
+            .with_number("vroughness", self.v)
+            .with_number("remaproughness", if self.remap { 1.0 } else { 0.0 })
+    }
+
+    /// The same roughness on both axes where a texture gives `texel`.
+    pub fn textured(self, texel: Option<f32>) -> Self {
+        match texel {
+            Some(r) => Roughness {
+                u: r.max(0.0),
+                v: r.max(0.0),
+                ..self
+            },
+            None => self,
+        }
+    }
+
+    pub fn distribution(&self) -> TrowbridgeReitz {
+        let alpha = |r: f32| {
+            if self.remap {
+                TrowbridgeReitz::roughness_to_alpha(r)
+            } else {
+                r
+            }
+        };
+        TrowbridgeReitz::new(alpha(self.u), alpha(self.v))
+    }
+}
+
+/// Mirror reflection of `w` about the unit normal `n`.
+pub fn reflect(w: Vec3, n: Vec3) -> Vec3 {
+    2.0 * w.dot(n) * n - w
 }
 
 #[cfg(test)]

@@ -41,6 +41,7 @@ impl Bxdf for Mirror {
         Albedo {
             kd: Rgb::BLACK,
             ks: self.ks,
+            roughness: None,
         }
     }
 

@@ -1,4 +1,5 @@
-//! BSDFs: lambert, energy-conserving Phong (000 eq. 3.1), mirror and glass.
+//! BSDFs: lambert, energy-conserving Phong (000 eq. 3.1), mirror and glass, and pbrt-v4's
+//! conductor, dielectric and thin dielectric on Trowbridge-Reitz microfacets.
 //!
 //! A [`Bsdf`] is built at one path vertex for one fixed direction `wo` (pointing back along the
 //! path the walk came from) and answers, for another direction `wi`, the value, the forward pdf
@@ -51,8 +52,9 @@ mod params;
 mod registry;
 
 pub use bxdf::{Bxdf, BxdfType};
-pub use layer::{Coating, Roughness};
+pub use layer::Coating;
 pub use lobe::{Lobe, LobeShape, Lobes, PolarBound, PolarInterval};
+use microfacet::Roughness;
 pub use params::{
     BsdfError, EnergyExcess, EnergyFix, ParamKind, ParamProblem, ParamRange, ParamReader,
     ParamSpec, ParamValue, Params,
@@ -65,6 +67,11 @@ registry! {
     phong::Phong { kd: Rgb, ks: Rgb, exponent: f32 },
     mirror::Mirror { ks: Rgb },
     glass::Glass { ior: f32 },
+    /// pbrt-v4's conductor: complex Fresnel on Trowbridge-Reitz microfacets.
+    conductor::Conductor { eta: Rgb, k: Rgb, roughness: Roughness },
+    /// pbrt-v4's dielectric: Walter et al. 2007 on Trowbridge-Reitz microfacets, glass when smooth.
+    dielectric::Dielectric { eta: f32, roughness: Roughness },
+    thin_dielectric::ThinDielectric { eta: f32 },
     /// pbrt-v4's lambertian reflection and transmission.
     diffuse_transmission::DiffuseTransmission { r: Rgb, t: Rgb },
     /// pbrt-v4's coateddiffuse by the deterministic layered model of layer.rs.
@@ -125,6 +132,10 @@ pub struct Albedo {
     pub kd: Rgb,
     /// Phong's ks, the mirror's reflectance (unused by lambert and glass).
     pub ks: Rgb,
+    /// A microfacet type's roughness on both axes, where a texture gives it (in the type's
+    /// own units: remapped to alpha when its `remaproughness` says so); `None` keeps the
+    /// type's own.
+    pub roughness: Option<f32>,
 }
 
 impl Albedo {

@@ -216,6 +216,11 @@ impl<'a> ParamReader<'a> {
         )
     }
 
+    /// Whether the scene gave `name` (otherwise its default applies).
+    pub fn is_given(&self, name: &str) -> bool {
+        self.params.get(name).is_some()
+    }
+
     pub fn color(&self, name: &str) -> Result<Rgb, BsdfError> {
         match self.value(name)? {
             ParamValue::Color(c) => Ok(c),

@@ -134,6 +134,7 @@ impl Bxdf for Phong {
         Albedo {
             kd: self.kd,
             ks: self.ks,
+            roughness: None,
         }
     }
 

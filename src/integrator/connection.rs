@@ -94,7 +94,8 @@ pub struct Connection {
 }
 
 impl Connection {
-    /// `None` when either BSDF sends nothing along the connecting segment.
+    /// `None` when either BSDF sends nothing along the connecting segment, or it lies in
+    /// either vertex's geometric plane.
     pub fn new(from: &Bsdf, from_position: Vec3, to: &Bsdf, to_position: Vec3) -> Option<Self> {
         let d = to_position - from_position;
         let dist2 = d.length_squared();
@@ -109,6 +110,12 @@ impl Connection {
             return None;
         }
         let (cos_from, cos_to) = (from.cos_theta(dir), to.cos_theta(-dir));
+        // A segment in either surface's geometric plane carries nothing (G = 0), though
+        // shading normals can give both BSDFs a value there; the MIS quantities that arrive
+        // across it would divide by its zero cosine.
+        if cos_from == 0.0 || cos_to == 0.0 {
+            return None;
+        }
         Some(Connection {
             value: from_eval.f * to_eval.f * (cos_from * cos_to / dist2),
             from_eval,

@@ -145,6 +145,20 @@ struct MaterialTable {
     texture: Option<PathBuf>,
     /// Image for Phong's ks.
     ks_texture: Option<PathBuf>,
+    /// A dielectric's index (a number), or a conductor's per channel.
+    eta: Option<NumberOrColor>,
+    /// A conductor's absorption per channel.
+    k: Option<[f32; 3]>,
+    /// A conductor's normal-incidence reflectance, in place of eta and k.
+    reflectance: Option<[f32; 3]>,
+    /// Microfacet roughness on both axes, or on each.
+    roughness: Option<f32>,
+    uroughness: Option<f32>,
+    vroughness: Option<f32>,
+    /// Roughness is remapped to alpha (pbrt-v4's default) unless false.
+    remaproughness: Option<bool>,
+    /// Image for the roughness (its first channel), relative to the scene file.
+    roughness_texture: Option<PathBuf>,
     /// A mix's two materials, by name.
     materials: Option<[String; 2]>,
     /// A mix's probability of its second material.
@@ -152,6 +166,14 @@ struct MaterialTable {
     /// The parameters of the other types, by the names of their specs.
     #[serde(flatten)]
     params: BTreeMap<String, toml::Value>,
+}
+
+/// A value that is one number or a colour.
+#[derive(Deserialize, Clone, Copy)]
+#[serde(untagged)]
+enum NumberOrColor {
+    Number(f32),
+    Color([f32; 3]),
 }
 
 /// The type name of a material that is one of two others per point.
@@ -302,6 +324,14 @@ impl Loader {
         }
     }
 
+    fn non_negative(&self, entry: &str, x: f32) -> Result<f32, SceneError> {
+        if x.is_finite() && x >= 0.0 {
+            Ok(x)
+        } else {
+            Err(self.invalid(entry, format!("{x} must be a non-negative finite number")))
+        }
+    }
+
     /// A position: finite and within +-[`MAX_COORDINATE`].
     fn point(&self, entry: &str, v: [f32; 3]) -> Result<Vec3, SceneError> {
         let p = self.vec3(entry, v)?;
@@ -368,8 +398,14 @@ impl Loader {
                 &dir,
                 &table.ks_texture,
             )?;
+            let roughness = self.texture(
+                &path,
+                &format!("{entry}.roughness_texture"),
+                &dir,
+                &table.roughness_texture,
+            )?;
             self.builder
-                .set_textures(index, MaterialTextures { kd, ks });
+                .set_textures(index, MaterialTextures { kd, ks, roughness });
         }
         self.mixes(&file.material)?;
         for (i, mesh) in file.mesh.iter().enumerate() {
@@ -708,6 +744,32 @@ impl Loader {
         if let Some(x) = t.ior {
             params = params.with_number("ior", self.positive(&format!("{entry}.ior"), x)?);
         }
+        match t.eta {
+            Some(NumberOrColor::Number(x)) => {
+                params = params.with_number("eta", self.positive(&format!("{entry}.eta"), x)?);
+            }
+            Some(NumberOrColor::Color(v)) => {
+                params = params.with_color("eta", self.color(&format!("{entry}.eta"), v)?);
+            }
+            None => {}
+        }
+        for (key, value) in [("k", t.k), ("reflectance", t.reflectance)] {
+            if let Some(v) = value {
+                params = params.with_color(key, self.color(&format!("{entry}.{key}"), v)?);
+            }
+        }
+        for (key, value) in [
+            ("roughness", t.roughness),
+            ("uroughness", t.uroughness),
+            ("vroughness", t.vroughness),
+        ] {
+            if let Some(x) = value {
+                params = params.with_number(key, self.non_negative(&format!("{entry}.{key}"), x)?);
+            }
+        }
+        if let Some(remap) = t.remaproughness {
+            params = params.with_number("remaproughness", if remap { 1.0 } else { 0.0 });
+        }
         let emission = match t.emission {
             Some(v) => self.color(&format!("{entry}.emission"), v)?,
             None => base.map_or(Rgb::BLACK, |m| m.emission),
@@ -1019,8 +1081,14 @@ impl Loader {
             &mtl_dir,
             &map(&m.specular_texture),
         )?;
-        self.builder
-            .set_textures(index, MaterialTextures { kd, ks });
+        self.builder.set_textures(
+            index,
+            MaterialTextures {
+                kd,
+                ks,
+                roughness: None,
+            },
+        );
         Ok(index)
     }
 

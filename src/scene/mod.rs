@@ -59,6 +59,8 @@ impl MeshShading {
 pub struct MaterialTextures {
     pub kd: Option<u32>,
     pub ks: Option<u32>,
+    /// Roughness of a microfacet type (the texel's first channel).
+    pub roughness: Option<u32>,
 }
 
 /// The `[render]` table: per-scene defaults, each overridable on the command line.
@@ -362,7 +364,10 @@ impl Scene {
             return Albedo::of(kind);
         }
         let texel = |t: Option<u32>| t.map(|t| self.textures[t as usize].lookup(uv));
-        kind.textured_albedo(texel(textures.kd), texel(textures.ks))
+        Albedo {
+            roughness: texel(textures.roughness).map(|c| c.r),
+            ..kind.textured_albedo(texel(textures.kd), texel(textures.ks))
+        }
     }
 
     /// The BSDF of `material` at a surface point with `normals` and texture coordinates `uv`,

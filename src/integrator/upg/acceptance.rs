@@ -281,8 +281,10 @@ impl<'a> AngularBound<'a> {
         // crosses the geometric plane: each trial offsets the vertex to the side of its own
         // direction, as `Ray::spawn` would, and the cone is taken from the vertex itself with
         // the radius grown by twice the offset (once suffices, the rest covers rounding), so it
-        // holds every direction that can succeed from either origin.
-        let (origin, per_trial_offset, cone_radius) = if bsdf.is_smooth() {
+        // holds every direction that can succeed from either origin. A BSDF without bounded
+        // lobes may also transmit (rough dielectrics): its trials, drawn from the whole BSDF,
+        // offset their own origins too.
+        let (origin, per_trial_offset, cone_radius) = if bsdf.is_smooth() || !lobes.is_bounded() {
             let offset = (offset_ray_origin(position, ng, ng) - position).length();
             (position, Some(ng), radius as f64 + 2.0 * offset as f64)
         } else {

@@ -1,9 +1,9 @@
 //! pbrt-v4's materials mapped onto vmerge's BSDFs (the table in docs/pbrt.md, "Materials"): the
 //! Material, MakeNamedMaterial and NamedMaterial directives, the mapping of each material type,
-//! and its arithmetic (Fresnel reflectance at normal incidence, roughness to a Phong exponent,
-//! the RGB values of pbrt's named metal spectra). `diffusetransmission`, `coateddiffuse`,
-//! `coatedconductor` and `mix` map to their own models. Reflectances are clamped to [0, 1] as
-//! pbrt-v4 clamps them; the builder's rule handles what a file states beyond that.
+//! and the RGB values of pbrt's named metal spectra. Conductors, dielectrics and thin dielectrics are vmerge's own types of the same
+//! names; `diffusetransmission`, `coateddiffuse`, `coatedconductor` and `mix` map to their own
+//! models. Reflectances are clamped to [0, 1] as pbrt-v4 clamps them; the builder's rule
+//! handles what a file states beyond that.
 
 use super::import::{Importer, Loc};
 use super::parser::{Directive, ParamList, ParamType, Spectrum, Values};
@@ -14,32 +14,6 @@ use crate::files::snippet;
 use crate::scene::builder::{round3, MaterialDesc, Origin};
 use crate::scene::Mix;
 use crate::scene::SceneError;
-
-/// The largest Phong exponent a mapped material gets: past it, f32 cannot resolve the lobe
-/// (its width, sqrt(2/n) rad, nears the spacing of cosines close to 1).
-pub const MAX_EXPONENT: f32 = 10_000.0;
-
-/// pbrt-v4's `TrowbridgeReitzDistribution::RoughnessToAlpha` (used when `remaproughness`).
-pub fn roughness_to_alpha(roughness: f32) -> f32 {
-    roughness.max(0.0).sqrt()
-}
-
-/// The Phong exponent with the same lobe width as a microfacet distribution of roughness
-/// `alpha`: n = 2 / alpha^2 - 2 (Walter et al. 2007, the Beckmann-Phong correspondence),
-/// clamped to [1, MAX_EXPONENT].
-pub fn phong_exponent(alpha: f32) -> f32 {
-    if alpha <= 0.0 {
-        return MAX_EXPONENT;
-    }
-    (2.0 / (alpha * alpha) - 2.0).clamp(1.0, MAX_EXPONENT)
-}
-
-/// Reflectance at normal incidence of a conductor, per channel:
-/// ((eta - 1)^2 + k^2) / ((eta + 1)^2 + k^2).
-pub fn conductor_f0(eta: Rgb, k: Rgb) -> Rgb {
-    let f = |n: f32, k: f32| ((n - 1.0).powi(2) + k * k) / ((n + 1.0).powi(2) + k * k);
-    Rgb::new(f(eta.r, k.r), f(eta.g, k.g), f(eta.b, k.b))
-}
 
 /// RGB values of pbrt's named metal spectra (`"metal-Au-eta"`, ...): the spectra averaged
 /// over the sRGB primaries' bands, the values renderers that work in RGB use for them.
@@ -123,33 +97,27 @@ impl Importer {
         }
     }
 
-    /// The microfacet alpha of a material's `roughness` (or the mean of `uroughness` and
-    /// `vroughness`), remapped as pbrt does unless `remaproughness` is false.
-    pub(super) fn alpha(&mut self, loc: Loc, params: &ParamList) -> Result<f32, SceneError> {
-        let r = self.float_param(loc, params, "roughness", 0.0)?;
-        let u = self.float_param(loc, params, "uroughness", 0.0)?;
-        let v = self.float_param(loc, params, "vroughness", 0.0)?;
-        let roughness = match (u, v) {
-            (None, None) => r.unwrap_or(0.0),
-            (u, v) => {
-                let (u, v) = (u.or(r).unwrap_or(0.0), v.or(r).unwrap_or(0.0));
-                if (u - v).abs() > 1e-6 {
-                    self.warn(loc, format!("anisotropic roughness ({u}, {v}) averaged"));
-                }
-                0.5 * (u + v)
+    /// A microfacet material's `roughness`, `uroughness`, `vroughness` and `remaproughness`
+    /// as the parameters of vmerge's microfacet types (which read them the same way).
+    pub(super) fn roughness_params(
+        &mut self,
+        loc: Loc,
+        p: &ParamList,
+    ) -> Result<Params, SceneError> {
+        let r = self.float_param(loc, p, "roughness", 0.0)?;
+        let u = self.float_param(loc, p, "uroughness", 0.0)?;
+        let v = self.float_param(loc, p, "vroughness", 0.0)?;
+        let (u, v) = (u.or(r).unwrap_or(0.0), v.or(r).unwrap_or(0.0));
+        for x in [u, v] {
+            if !(x >= 0.0 && x.is_finite()) {
+                return Err(self.at(loc, format!("roughness {x} is negative")));
             }
-        };
-        if !(roughness >= 0.0 && roughness.is_finite()) {
-            return Err(self.at(loc, format!("roughness {roughness} is negative")));
         }
-        let remap = params
-            .bool("remaproughness", true)
-            .map_err(self.pe(loc.file))?;
-        Ok(if remap {
-            roughness_to_alpha(roughness)
-        } else {
-            roughness
-        })
+        let remap = p.bool("remaproughness", true).map_err(self.pe(loc.file))?;
+        Ok(Params::new()
+            .with_number("uroughness", u)
+            .with_number("vroughness", v)
+            .with_number("remaproughness", if remap { 1.0 } else { 0.0 }))
     }
 
     /// Maps a pbrt material onto vmerge's BSDFs (docs/pbrt.md, "Materials"); one warning per
@@ -210,7 +178,8 @@ impl Importer {
                     params = params.with_color("reflectance", unit(r));
                 } else {
                     let cu = |n| named_spectrum(n).unwrap_or(Rgb::WHITE);
-                    let eta = self.constant_spectrum(loc, p, "conductor.eta", cu("metal-Cu-eta"))?;
+                    let eta =
+                        self.constant_spectrum(loc, p, "conductor.eta", cu("metal-Cu-eta"))?;
                     let k = self.constant_spectrum(loc, p, "conductor.k", cu("metal-Cu-k"))?;
                     params = params
                         .with_color("conductor.eta", eta)
@@ -219,25 +188,17 @@ impl Importer {
                 ("coatedconductor", params)
             }
             "conductor" => {
-                let alpha = self.alpha(loc, p)?;
-                let f0 = if p.params.iter().any(|q| q.name == "reflectance") {
-                    self.constant_spectrum(loc, p, "reflectance", Rgb::WHITE)?
+                let params = self.roughness_params(loc, p)?;
+                let params = if p.params.iter().any(|q| q.name == "reflectance") {
+                    let r = self.constant_spectrum(loc, p, "reflectance", Rgb::WHITE)?;
+                    params.with_color("reflectance", r)
                 } else {
                     let cu = |n| named_spectrum(n).unwrap_or(Rgb::WHITE);
                     let eta = self.constant_spectrum(loc, p, "eta", cu("metal-Cu-eta"))?;
                     let k = self.constant_spectrum(loc, p, "k", cu("metal-Cu-k"))?;
-                    conductor_f0(eta, k)
+                    params.with_color("eta", eta).with_color("k", k)
                 };
-                if alpha == 0.0 {
-                    mirror(f0)
-                } else {
-                    let exponent = phong_exponent(alpha);
-                    notes.push(format!(
-                        "rough conductor as Phong: ks = F0 = {:?}, exponent {exponent:.0} from alpha {alpha}",
-                        round3(f0)
-                    ));
-                    phong(Rgb::BLACK, f0, exponent)
-                }
+                ("conductor", params)
             }
             "dielectric" | "thindielectric" => {
                 let eta_type = p.params.iter().find(|q| q.name == "eta").map(|q| q.ty);
@@ -269,13 +230,19 @@ impl Importer {
                 if eta.is_nan() || eta <= 0.0 {
                     return Err(self.at(loc, format!("dielectric eta {eta} is not positive")));
                 }
-                if self.alpha(loc, p)? > 0.0 {
-                    notes.push("rough dielectric as smooth glass".into());
-                }
                 if ty == "thindielectric" {
-                    notes.push("thindielectric as glass".into());
+                    ("thindielectric", Params::new().with_number("eta", eta))
+                } else {
+                    let params = self.roughness_params(loc, p)?;
+                    let rough = MaterialKind::from_params("dielectric", &params)
+                        .is_ok_and(|kind| !kind.is_delta());
+                    if rough {
+                        ("dielectric", params.with_number("eta", eta))
+                    } else {
+                        // The smooth interface is glass itself.
+                        glass(eta)
+                    }
                 }
-                glass(eta)
             }
             "diffusetransmission" => {
                 let reflectance = albedo(self, "reflectance", Rgb::splat(0.25))?;
@@ -387,7 +354,9 @@ impl Importer {
         let eta = match p.params.iter().find(|q| q.name == name).map(|q| q.ty) {
             None => 1.5,
             Some(ParamType::Float) => self.float_param(loc, p, name, 1.5)?.unwrap_or(1.5),
-            Some(_) => self.constant_spectrum(loc, p, name, Rgb::splat(1.5))?.average(),
+            Some(_) => self
+                .constant_spectrum(loc, p, name, Rgb::splat(1.5))?
+                .average(),
         };
         if eta.is_nan() || eta < 0.0 {
             return Err(self.at(loc, format!("{name} {eta} is negative")));
@@ -540,17 +509,13 @@ fn lambert(kd: Rgb) -> (&'static str, Params) {
     ("lambert", Params::new().with_color("kd", kd))
 }
 
-fn phong(kd: Rgb, ks: Rgb, exponent: f32) -> (&'static str, Params) {
-    let params = Params::new()
-        .with_color("kd", kd)
-        .with_color("ks", ks)
-        .with_number("exponent", exponent);
-    ("phong", params)
-}
-
 /// Each channel clamped to [0, 1], as pbrt-v4 clamps reflectances.
 fn unit(c: Rgb) -> Rgb {
-    Rgb::new(c.r.clamp(0.0, 1.0), c.g.clamp(0.0, 1.0), c.b.clamp(0.0, 1.0))
+    Rgb::new(
+        c.r.clamp(0.0, 1.0),
+        c.g.clamp(0.0, 1.0),
+        c.b.clamp(0.0, 1.0),
+    )
 }
 
 fn diffuse_transmission(r: Rgb, t: Rgb) -> (&'static str, Params) {
@@ -558,10 +523,6 @@ fn diffuse_transmission(r: Rgb, t: Rgb) -> (&'static str, Params) {
         .with_color("reflectance", r)
         .with_color("transmittance", t);
     ("diffusetransmission", params)
-}
-
-fn mirror(ks: Rgb) -> (&'static str, Params) {
-    ("mirror", Params::new().with_color("ks", ks))
 }
 
 fn glass(ior: f32) -> (&'static str, Params) {
@@ -573,12 +534,10 @@ mod tests {
     use super::*;
 
     #[test]
-    fn fresnel_and_exponents() {
-        // A conductor with k = 0 is a dielectric.
-        let f = conductor_f0(Rgb::splat(1.5), Rgb::BLACK);
-        assert!((f.r - 0.04).abs() < 1e-6);
+    fn named_metals() {
         // Silver reflects over 90 % at normal incidence.
-        let ag = conductor_f0(
+        let ag = crate::bsdf::fresnel::complex(
+            1.0,
             named_spectrum("metal-Ag-eta").unwrap(),
             named_spectrum("metal-Ag-k").unwrap(),
         );
@@ -586,10 +545,5 @@ mod tests {
             ag.min_component() > 0.9 && ag.max_component() < 1.0,
             "{ag:?}"
         );
-        assert!((phong_exponent(0.1) - 198.0).abs() < 1e-3);
-        assert_eq!(phong_exponent(0.0), MAX_EXPONENT);
-        assert_eq!(phong_exponent(0.001), MAX_EXPONENT);
-        assert_eq!(phong_exponent(2.0), 1.0);
-        assert_eq!(roughness_to_alpha(0.25), 0.5);
     }
 }

@@ -103,7 +103,10 @@ fn named_materials_map_onto_their_bsdfs() {
     };
     assert_eq!(r, Rgb::new(1.0, 0.5, 0.25));
     // pbrt's defaults, and the roughness on both axes (remapped when the BSDF is built).
-    assert_eq!((coating.eta, coating.thickness, coating.max_depth), (1.5, 0.01, 10));
+    assert_eq!(
+        (coating.eta, coating.thickness, coating.max_depth),
+        (1.5, 0.01, 10)
+    );
     assert_eq!((coating.roughness.u, coating.roughness.v), (0.01, 0.01));
     assert!(coating.roughness.remap);
     let MaterialKind::Mirror { ks } = kinds[2] else {

@@ -343,6 +343,7 @@ impl Importer {
                 MaterialTextures {
                     kd: Some(kd),
                     ks: None,
+                    roughness: None,
                 },
             );
         }
