@@ -5,7 +5,14 @@
 //! f = f_top(wo, wi) + T(wo) T(wi) f_c(wo', wi') / eta^2 with wo', wi' the refracted directions
 //! inside the coating and the conductor's index relative to the coating (pbrt divides both eta
 //! and k by the coating's eta). A smooth conductor is a delta lobe at the mirror direction whose
-//! weight sums the internal reflections between conductor and coating. MEASURED-CONDUCTOR
+//! weight sums the internal reflections between conductor and coating.
+//!
+//! Measured against an f64 version of pbrt-v4's walk (tests/layered.rs; copper, pbrt's
+//! defaults, 2e5 walks, incidence 0 to 75 degrees), the directional albedo: smooth coat over
+//! smooth copper within 0.001 (the walk's noise); rough coat (0.2) over rough copper (0.2)
+//! within 0.011 (5 %); a smooth coat over rough copper (0.1) 0.034 to 0.041 darker (9 to 13 %):
+//! what the conductor reflects past the critical angle is trapped by total internal reflection
+//! and lost here, while pbrt's walk returns it to the conductor until it escapes.
 //!
 //! Sampling picks the top's lobe with its Fresnel share against the conductor's reflectance at
 //! the refracted angle; the conductor's lobe is sampled inside (visible normals) and refracted

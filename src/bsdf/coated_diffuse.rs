@@ -3,7 +3,12 @@
 //!
 //! f = f_top(wo, wi) + T(wo) T(wi) r S / (pi eta^2), where S = sum over k < n of (r F_int)^k
 //! sums the internal reflections (F_int the coating's internal diffuse round trip, n the
-//! bottom bounces of pbrt's walk). MEASURED-DIFFUSE
+//! bottom bounces of pbrt's walk).
+//!
+//! Measured against an f64 version of pbrt-v4's walk (tests/layered.rs; pbrt's defaults, 2e5
+//! walks, reflectance 0.8 or 0.5, roughness 0 to 0.5, incidence 0 to 75 degrees): the
+//! directional albedo differs by at most 0.0045 (1.0 %; 0.001 for a smooth coat, within the
+//! walk's noise), what it reflects into six bands of outgoing cosine by at most 0.0018.
 //!
 //! Sampling picks the top's lobe (a mirror when smooth) with its Fresnel share of the energy
 //! and a cosine lobe for the base otherwise; the pdfs are those of this mixture.

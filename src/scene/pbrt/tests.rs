@@ -109,15 +109,16 @@ fn named_materials_map_onto_their_bsdfs() {
     );
     assert_eq!((coating.roughness.u, coating.roughness.v), (0.01, 0.01));
     assert!(coating.roughness.remap);
-    let MaterialKind::Mirror { ks } = kinds[2] else {
-        panic!("{:?}", kinds[2])
-    };
-    assert!(ks.min_component() > 0.9);
-    let MaterialKind::Phong { kd, ks, exponent } = kinds[3] else {
-        panic!("{:?}", kinds[3])
-    };
-    assert_eq!(kd, Rgb::BLACK);
-    assert!((ks.g - 0.04).abs() < 1e-6 && (exponent - 198.0).abs() < 1e-2);
+    assert!(
+        matches!(kinds[2], MaterialKind::Conductor { .. }),
+        "{:?}",
+        kinds[2]
+    );
+    assert!(
+        matches!(kinds[3], MaterialKind::Conductor { .. }),
+        "{:?}",
+        kinds[3]
+    );
     assert_eq!(kinds[4], MaterialKind::Glass { ior: 1.33 });
     assert_eq!(
         kinds[5],
@@ -139,12 +140,8 @@ fn named_materials_map_onto_their_bsdfs() {
         .map(Warning::to_string)
         .filter(|w| w.contains("material '"))
         .collect();
-    // The rough conductor alone is approximated.
-    assert_eq!(warned.len(), 1, "{warned:?}");
-    assert!(
-        warned[0].contains("scene.pbrt:7: material 'brushed'"),
-        "{warned:?}"
-    );
+    // Every one of these has its own model: nothing is approximated.
+    assert!(warned.is_empty(), "{warned:?}");
     // An undefined name is an error at its line.
     let e = error(&[("scene.pbrt", b"WorldBegin\n\nNamedMaterial \"nope\"\n")]);
     assert!(
