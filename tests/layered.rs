@@ -16,6 +16,7 @@ use vmerge::color::Rgb;
 use vmerge::options::{RenderOptions, Technique};
 use vmerge::sampling::{Rng, Stream};
 use vmerge::scene::{self, LoadOptions, Scene};
+use vmerge::texture::{write_pfm, Texture};
 
 fn kind(type_name: &str, params: Params) -> MaterialKind {
     MaterialKind::from_params(type_name, &params).unwrap_or_else(|e| panic!("{e}"))
@@ -693,6 +694,24 @@ fn a_mix_shows_its_materials_in_proportion() {
     let b = render_stats(&grey, &o, 256);
     // Direct light only: the grey sphere reflects 0.3 everywhere, the mix 0 or 1 per point.
     assert_means_agree("mix of black and white against grey", &a, &b);
+    // The amount from a texture (one texel of 0.3): the same image as the constant's.
+    let dir = std::env::temp_dir().join(format!("vmerge-layered-amount-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let texel = Texture::new(1, 1, vec![Rgb::splat(0.3)]).unwrap();
+    let image = dir.join("amount.pfm");
+    std::fs::write(&image, write_pfm(&texel)).unwrap();
+    let textured = sphere_in_the_sky(
+        "mix-texture",
+        &format!(
+            "[material.black]\nkd = [0.0, 0.0, 0.0]\n[material.white]\nkd = [1.0, 1.0, 1.0]\n\
+             [material.m]\ntype = \"mix\"\nmaterials = [\"black\", \"white\"]\n\
+             amount_texture = {:?}\n",
+            image.display().to_string()
+        ),
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+    let t = render_stats(&textured, &o, 256);
+    assert_means_agree("mix with a textured amount against grey", &t, &b);
     // Deterministic: the same render twice is the same image.
     let again = render_stats(&mix, &o, 64);
     let first = render_stats(&mix, &o, 64);

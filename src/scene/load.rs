@@ -163,6 +163,8 @@ struct MaterialTable {
     materials: Option<[String; 2]>,
     /// A mix's probability of its second material.
     amount: Option<f32>,
+    /// Image whose mean channel gives a mix's amount per point, relative to the scene file.
+    amount_texture: Option<PathBuf>,
     /// The parameters of the other types, by the names of their specs.
     #[serde(flatten)]
     params: BTreeMap<String, toml::Value>,
@@ -622,10 +624,17 @@ impl Loader {
             if let Some(key) = t.params.keys().next() {
                 return Err(self.invalid(format!("{entry}.{key}"), "unknown key for a mix"));
             }
+            let (path, dir) = (self.path.clone(), self.dir.clone());
+            let amount_texture = self.texture(
+                &path,
+                &format!("{entry}.amount_texture"),
+                &dir,
+                &t.amount_texture,
+            )?;
             let mix = Mix {
                 materials,
                 amount,
-                amount_texture: None,
+                amount_texture,
             };
             let index = self.builder.mix(name.clone(), mix);
             self.by_name.insert(name.clone(), index);
@@ -785,8 +794,11 @@ impl Loader {
             };
             return Err(self.invalid(format!("{entry}.type"), e.to_string()));
         };
-        if t.materials.is_some() || t.amount.is_some() {
-            return Err(self.invalid(&entry, "'materials' and 'amount' belong to type = \"mix\""));
+        if t.materials.is_some() || t.amount.is_some() || t.amount_texture.is_some() {
+            return Err(self.invalid(
+                &entry,
+                "'materials', 'amount' and 'amount_texture' belong to type = \"mix\"",
+            ));
         }
         self.type_params(&entry, type_name, t, &mut params)?;
         Ok(MaterialDesc {
