@@ -112,6 +112,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() {
+    layered_costs();
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/scenes/conference.toml");
     if !path.exists()
         || !Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -201,5 +202,85 @@ fn main() {
                 median(ratios[i].clone())
             );
         }
+    }
+}
+
+/// The cost of one scattering event (building the BSDF, sampling it, evaluating it at the
+/// sample) of pbrt-v4's layered types next to Phong's, per call over directions spread on the
+/// hemisphere; the figures are medians over rounds.
+fn layered_costs() {
+    use std::hint::black_box;
+    use vmerge::bsdf::{Bsdf, MaterialKind, Params, TransportMode};
+    let kind = |name: &str, params: Params| {
+        MaterialKind::from_params(name, &params).expect("valid parameters")
+    };
+    let kinds = [
+        (
+            "phong",
+            kind(
+                "phong",
+                Params::new()
+                    .with_color("kd", Rgb::splat(0.4))
+                    .with_color("ks", Rgb::splat(0.4))
+                    .with_number("exponent", 50.0),
+            ),
+        ),
+        (
+            "diffusetransmission",
+            kind("diffusetransmission", Params::new()),
+        ),
+        ("coateddiffuse smooth", kind("coateddiffuse", Params::new())),
+        (
+            "coateddiffuse rough",
+            kind("coateddiffuse", Params::new().with_number("roughness", 0.2)),
+        ),
+        (
+            "coatedconductor rough",
+            kind(
+                "coatedconductor",
+                Params::new()
+                    .with_number("interface.roughness", 0.1)
+                    .with_number("conductor.roughness", 0.2),
+            ),
+        ),
+    ];
+    const CALLS: u32 = 1 << 20;
+    let directions: Vec<Vec3> = (0..1024)
+        .map(|i| {
+            let z = (i as f32 + 0.5) / 1024.0;
+            let phi = i as f32 * 2.399_963;
+            let r = (1.0 - z * z).sqrt();
+            Vec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect();
+    let mut per_call = vec![Vec::new(); kinds.len()];
+    for _ in 0..ROUNDS {
+        for (slot, (_, k)) in per_call.iter_mut().zip(&kinds) {
+            let start = Instant::now();
+            let mut sum = 0.0f32;
+            for i in 0..CALLS {
+                let wo = directions[(i & 1023) as usize];
+                let u = [
+                    (i.wrapping_mul(2_654_435_761) >> 8) as f32 / (1u32 << 24) as f32,
+                    (i.wrapping_mul(2_246_822_519) >> 8) as f32 / (1u32 << 24) as f32,
+                    (i.wrapping_mul(3_266_489_917) >> 8) as f32 / (1u32 << 24) as f32,
+                ];
+                let bsdf = Bsdf::new(black_box(k), Vec3::Z, wo, TransportMode::Radiance);
+                if let Some(s) = bsdf.as_ref().and_then(|b| b.sample(u)) {
+                    let e = bsdf.as_ref().map_or(0.0, |b| b.eval(s.wi).pdf_w);
+                    sum += s.f.g + e;
+                }
+            }
+            black_box(sum);
+            slot.push(start.elapsed().as_secs_f64() * 1e9 / CALLS as f64);
+        }
+    }
+    let phong = median(per_call[0].clone());
+    for ((name, _), times) in kinds.iter().zip(per_call) {
+        let t = median(times);
+        println!(
+            "{name:22} {t:6.1} ns per scattering event, {:.2} x phong",
+            t / phong
+        );
     }
 }

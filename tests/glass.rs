@@ -121,6 +121,7 @@ fn pane_scene(accel: AccelKind) -> Scene {
             },
         ],
         material_textures: vec![Default::default(); 2],
+        mixes: Vec::new(),
         textures: Vec::new(),
         shading: Default::default(),
         point_and_directional: Vec::new(),

@@ -815,3 +815,11 @@ fn weights_sum_to_one_with_a_spot_light() {
 fn weights_sum_to_one_with_two_sided_lights() {
     check_scene("fixtures/lights/twosided", Aim::Disc);
 }
+
+/// pbrt-v4's diffuse transmission, rough coated diffuse, coated conductor and a mix of coated
+/// diffuses: paths through their lobes (sampled non-delta) have weights that sum to 1.
+#[test]
+fn weights_sum_to_one_with_layered_and_mixed_materials() {
+    let (_, merged) = check_scene("layered", Aim::Disc);
+    assert!(merged > 0, "no path gave a merge any weight");
+}

@@ -1,8 +1,7 @@
-//! Both scene formats go through one builder: the same over-energetic Phong, written as a TOML
-//! table and as the pbrt material that maps onto it (coateddiffuse of reflectance 1.25 over
-//! eta 3: kd = 1.25 x (1 - F0) = 0.9375, ks = F0 = 0.25, a smooth coat's exponent 10000),
-//! gives the same materials and the same warning, or without `--lenient` the same refusal;
-//! and loading returns its warnings, which the CLI prints.
+//! Both scene formats go through one builder: the same over-energetic diffuse transmitter
+//! (reflectance 0.75 beside transmittance 0.5), written as a TOML table and as the pbrt
+//! material, gives the same materials and the same warning, or without `--lenient` the same
+//! refusal; and loading returns its warnings, which the CLI prints.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -45,7 +44,7 @@ fn energy_warnings(scene: &Scene) -> Vec<&Warning> {
     scene
         .warnings
         .iter()
-        .filter(|w| w.message.contains("kd + ks"))
+        .filter(|w| w.message.contains("exceeds 1"))
         .collect()
 }
 
@@ -56,14 +55,13 @@ fn both_formats_build_the_same_materials_and_warnings() {
     let (a, b) = (surfaces(&toml), surfaces(&pbrt));
     assert_eq!(a.len(), 5, "{a:?}");
     assert_eq!(a, b);
-    // Scaled per channel by 1 / (kd + ks), the ratio of kd to ks kept.
-    let sum = 0.9375f32 + 0.25;
+    // Scaled per channel by 1 / (r + t), the ratio of r to t kept.
+    let sum = 0.75f32 + 0.5;
     assert_eq!(
         a[4].0,
-        MaterialKind::Phong {
-            kd: Rgb::splat(0.9375 * (1.0 / sum)),
-            ks: Rgb::splat(0.25 * (1.0 / sum)),
-            exponent: 10_000.0,
+        MaterialKind::DiffuseTransmission {
+            r: Rgb::splat(0.75 * (1.0 / sum)),
+            t: Rgb::splat(0.5 * (1.0 / sum)),
         }
     );
     // One warning each, the same words; only where it points differs with the format.
@@ -72,7 +70,7 @@ fn both_formats_build_the_same_materials_and_warnings() {
     assert_eq!(wa[0].message, wb[0].message);
     assert_eq!(
         wa[0].message,
-        "kd + ks = [1.188, 1.188, 1.188] exceeds 1; scaled down to conserve energy"
+        "reflectance + transmittance = [1.25, 1.25, 1.25] exceeds 1; scaled down to conserve energy"
     );
     assert_eq!(wa[0].file.as_deref(), Some(fixture("scene.toml").as_path()));
     assert_eq!(wa[0].entry.as_deref(), Some("material.shiny"));
@@ -94,7 +92,7 @@ fn without_lenient_both_formats_refuse_the_material() {
             Err(e) => e.to_string(),
         };
         let expected =
-            format!("{place}kd + ks = [1.188, 1.188, 1.188] exceeds 1 and would create energy");
+            format!("{place}reflectance + transmittance = [1.25, 1.25, 1.25] exceeds 1 and would create energy");
         assert!(e.contains(&expected), "{e}");
     }
 }

@@ -44,6 +44,7 @@ use glam::Vec3;
 
 mod bxdf;
 pub mod fresnel;
+mod layer;
 mod lobe;
 pub mod microfacet;
 mod params;
@@ -51,6 +52,7 @@ mod params;
 mod registry;
 
 pub use bxdf::{Bxdf, BxdfType};
+pub use layer::Coating;
 pub use lobe::{Lobe, LobeShape, Lobes, PolarBound, PolarInterval};
 use microfacet::Roughness;
 pub use params::{
@@ -70,6 +72,12 @@ registry! {
     /// pbrt-v4's dielectric: Walter et al. 2007 on Trowbridge-Reitz microfacets, glass when smooth.
     dielectric::Dielectric { eta: f32, roughness: Roughness },
     thin_dielectric::ThinDielectric { eta: f32 },
+    /// pbrt-v4's lambertian reflection and transmission.
+    diffuse_transmission::DiffuseTransmission { r: Rgb, t: Rgb },
+    /// pbrt-v4's coateddiffuse by the deterministic layered model of layer.rs.
+    coated_diffuse::CoatedDiffuse { r: Rgb, coating: Coating },
+    /// pbrt-v4's coatedconductor by the deterministic layered model of layer.rs.
+    coated_conductor::CoatedConductor { eta: Rgb, k: Rgb, reflectance: Rgb, roughness: Roughness, coating: Coating },
 }
 
 /// A named material: how it scatters and what it emits (radiance, one-sided, on the side the

@@ -23,7 +23,7 @@
 //! what a file states can trip the rule; none of the shipped or Bitterli scenes does.
 
 use super::{
-    CameraDesc, MaterialTextures, MeshShading, RenderDefaults, SceneError, SceneParts, Warning,
+    CameraDesc, MaterialTextures, MeshShading, Mix, RenderDefaults, SceneError, SceneParts, Warning,
 };
 use crate::accel::Geometry;
 use crate::bsdf::{EnergyFix, Material, MaterialKind, Params};
@@ -121,6 +121,8 @@ pub struct Builder {
     materials: Vec<Material>,
     /// Parallel to `materials`.
     material_textures: Vec<MaterialTextures>,
+    /// Parallel to `materials` once a mix is added.
+    mixes: Vec<Option<Mix>>,
     /// Each image file decoded so far (the file's extension fixes its colour space, so one
     /// path is one decoding).
     images: HashMap<PathBuf, Arc<Texture>>,
@@ -139,6 +141,7 @@ impl Builder {
             warnings: Vec::new(),
             materials: Vec::new(),
             material_textures: Vec::new(),
+            mixes: Vec::new(),
             images: HashMap::new(),
             textures: Vec::new(),
             texture_index: HashMap::new(),
@@ -249,9 +252,39 @@ impl Builder {
         }))
     }
 
+    /// Adds a mix of two materials already added (`amount` the probability of the second,
+    /// clamped to [0, 1]); it is named and listed like any material, and hits resolve it.
+    pub fn mix(&mut self, name: String, mix: Mix) -> u32 {
+        let mut m = self.materials[mix.materials[0] as usize].clone();
+        m.name = name;
+        m.emission = Rgb::BLACK;
+        let index = self.push_material(m);
+        self.mixes.resize(self.materials.len(), None);
+        self.mixes[index as usize] = Some(Mix {
+            amount: mix.amount.clamp(0.0, 1.0),
+            ..mix
+        });
+        index
+    }
+
     /// Adds a material that is a variant of one already checked (an emissive copy, on one side
-    /// or on both).
+    /// or on both; of a mix, the mix of its materials' variants, so the emission survives the
+    /// choice).
     pub fn variant(&mut self, base: u32, name: String, emission: Rgb, two_sided: bool) -> u32 {
+        if let Some(Some(mix)) = self.mixes.get(base as usize).copied() {
+            let materials = mix.materials.map(|m| {
+                self.variant(
+                    m,
+                    format!("{name} ({})", self.materials[m as usize].name),
+                    emission,
+                    two_sided,
+                )
+            });
+            let index = self.mix(name, Mix { materials, ..mix });
+            self.materials[index as usize].emission = emission;
+            self.materials[index as usize].two_sided = two_sided;
+            return index;
+        }
         let mut m = self.materials[base as usize].clone();
         m.name = name;
         m.emission = emission;
@@ -265,6 +298,9 @@ impl Builder {
     fn push_material(&mut self, material: Material) -> u32 {
         self.materials.push(material);
         self.material_textures.push(MaterialTextures::default());
+        if !self.mixes.is_empty() {
+            self.mixes.push(None);
+        }
         self.materials.len() as u32 - 1
     }
 
@@ -339,6 +375,7 @@ impl Builder {
             sphere_materials: c.sphere_materials,
             materials: self.materials,
             material_textures: self.material_textures,
+            mixes: self.mixes,
             textures: self.textures,
             shading: c.shading,
             point_and_directional: c.lights,

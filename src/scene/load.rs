@@ -9,11 +9,11 @@
 use super::builder::{Builder, Contents, MaterialDesc, Origin};
 use super::wavefront;
 use super::{
-    CameraDesc, FovAxis, MaterialTextures, MeshShading, RenderDefaults, Scene, SceneError,
+    CameraDesc, FovAxis, MaterialTextures, MeshShading, Mix, RenderDefaults, Scene, SceneError,
     SceneParts, Warning, MAX_COORDINATE,
 };
 use crate::accel::{AccelKind, Geometry, Sphere};
-use crate::bsdf::{BsdfError, Material, MaterialKind, Params};
+use crate::bsdf::{BsdfError, Material, MaterialKind, ParamKind, ParamValue, Params};
 use crate::color::Rgb;
 use crate::files::{self, Kind};
 use crate::light::{EnvMapDesc, SceneBounds, SkyDesc};
@@ -130,8 +130,9 @@ struct SphereTable {
     material: String,
 }
 
+/// Unknown keys are refused by [`Loader::type_params`] (serde cannot deny them beside a
+/// flattened map).
 #[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
 struct MaterialTable {
     #[serde(rename = "type")]
     kind: Option<String>,
@@ -160,6 +161,15 @@ struct MaterialTable {
     remaproughness: Option<bool>,
     /// Image for the roughness (its first channel), relative to the scene file.
     roughness_texture: Option<PathBuf>,
+    /// A mix's two materials, by name.
+    materials: Option<[String; 2]>,
+    /// A mix's probability of its second material.
+    amount: Option<f32>,
+    /// Image whose mean channel gives a mix's amount per point, relative to the scene file.
+    amount_texture: Option<PathBuf>,
+    /// The parameters of the other types, by the names of their specs.
+    #[serde(flatten)]
+    params: BTreeMap<String, toml::Value>,
 }
 
 /// A value that is one number or a colour.
@@ -169,6 +179,9 @@ enum NumberOrColor {
     Number(f32),
     Color([f32; 3]),
 }
+
+/// The type name of a material that is one of two others per point.
+const MIX: &str = "mix";
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -374,6 +387,9 @@ impl Loader {
         // Scene-file materials first, so meshes and spheres can refer to them; MTL materials of
         // the same name are overridden by them.
         for (name, table) in &file.material {
+            if table.kind.as_deref() == Some(MIX) {
+                continue;
+            }
             let material = self.material_from_table(name, table, None)?;
             let entry = format!("material.{name}");
             let origin = Origin {
@@ -400,6 +416,7 @@ impl Loader {
             self.builder
                 .set_textures(index, MaterialTextures { kd, ks, roughness });
         }
+        self.mixes(&file.material)?;
         for (i, mesh) in file.mesh.iter().enumerate() {
             self.mesh(i, mesh)?;
         }
@@ -580,6 +597,114 @@ impl Loader {
         })
     }
 
+    /// Adds the mixes among `tables`, each after the materials it names (a mix may name a
+    /// mix).
+    fn mixes(&mut self, tables: &BTreeMap<String, MaterialTable>) -> Result<(), SceneError> {
+        let mut pending: Vec<(&String, &MaterialTable)> = tables
+            .iter()
+            .filter(|(_, t)| t.kind.as_deref() == Some(MIX))
+            .collect();
+        while !pending.is_empty() {
+            let ready = |t: &MaterialTable| {
+                t.materials
+                    .as_ref()
+                    .is_none_or(|m| m.iter().all(|n| self.by_name.contains_key(n)))
+            };
+            // None ready: name the first one's missing material (unknown, or a cycle).
+            let at = pending.iter().position(|(_, t)| ready(t)).unwrap_or(0);
+            let (name, t) = pending.remove(at);
+            let entry = format!("material.{name}");
+            let names = t.materials.as_ref().ok_or_else(|| {
+                self.invalid(&entry, "a mix needs materials = [\"first\", \"second\"]")
+            })?;
+            let materials = [
+                self.material_index(&format!("{entry}.materials"), &names[0])?,
+                self.material_index(&format!("{entry}.materials"), &names[1])?,
+            ];
+            let amount = t.amount.unwrap_or(0.5);
+            if !(0.0..=1.0).contains(&amount) {
+                return Err(self.invalid(
+                    format!("{entry}.amount"),
+                    format!("{amount} is not in [0, 1]"),
+                ));
+            }
+            if let Some(key) = t.params.keys().next() {
+                return Err(self.invalid(format!("{entry}.{key}"), "unknown key for a mix"));
+            }
+            let (path, dir) = (self.path.clone(), self.dir.clone());
+            let amount_texture = self.texture(
+                &path,
+                &format!("{entry}.amount_texture"),
+                &dir,
+                &t.amount_texture,
+            )?;
+            let mix = Mix {
+                materials,
+                amount,
+                amount_texture,
+            };
+            let index = self.builder.mix(name.clone(), mix);
+            self.by_name.insert(name.clone(), index);
+        }
+        Ok(())
+    }
+
+    /// The parameters a table gives by its types' own names (`reflectance`, `roughness`, ...):
+    /// numbers, booleans (as 0 or 1) and colour triples, each a parameter of `type_name`.
+    fn type_params(
+        &self,
+        entry: &str,
+        type_name: &str,
+        t: &MaterialTable,
+        params: &mut Params,
+    ) -> Result<(), SceneError> {
+        let specs = MaterialKind::param_specs(type_name)
+            .map_err(|e| self.invalid(format!("{entry}.type"), e.to_string()))?;
+        for (key, value) in &t.params {
+            let here = format!("{entry}.{key}");
+            let Some(spec) = specs.iter().find(|s| s.name == key) else {
+                let known: Vec<&str> = specs.iter().map(|s| s.name).collect();
+                return Err(self.invalid(
+                    here,
+                    format!("unknown key for type {type_name} (its parameters: {known:?})"),
+                ));
+            };
+            let number = |x: f64| -> Result<f32, SceneError> {
+                let x = x as f32;
+                if x.is_finite() {
+                    Ok(x)
+                } else {
+                    Err(self.invalid(&here, format!("{x} is not a finite number")))
+                }
+            };
+            let value = match value {
+                toml::Value::Float(x) => ParamValue::Number(number(*x)?),
+                toml::Value::Integer(x) => ParamValue::Number(number(*x as f64)?),
+                toml::Value::Boolean(b) => ParamValue::Number(if *b { 1.0 } else { 0.0 }),
+                toml::Value::Array(a) if a.len() == 3 && spec.kind == ParamKind::Color => {
+                    let mut c = [0.0f32; 3];
+                    for (slot, v) in c.iter_mut().zip(a) {
+                        *slot = match v {
+                            toml::Value::Float(x) => number(*x)?,
+                            toml::Value::Integer(x) => number(*x as f64)?,
+                            _ => return Err(self.invalid(&here, "expected three numbers")),
+                        };
+                    }
+                    ParamValue::Color(self.color(&here, c)?)
+                }
+                _ => {
+                    let expected = match spec.kind {
+                        ParamKind::Color => "a number or three numbers",
+                        ParamKind::Number => "a number",
+                    };
+                    return Err(self.invalid(here, format!("expected {expected}")));
+                }
+            };
+            params.set(key, value);
+        }
+        Ok(())
+    }
+
     /// Adds a material through the builder, findable by its name.
     fn add_material(&mut self, origin: &Origin, material: MaterialDesc) -> Result<u32, SceneError> {
         let name = material.name.clone();
@@ -676,6 +801,13 @@ impl Loader {
             };
             return Err(self.invalid(format!("{entry}.type"), e.to_string()));
         };
+        if t.materials.is_some() || t.amount.is_some() || t.amount_texture.is_some() {
+            return Err(self.invalid(
+                &entry,
+                "'materials', 'amount' and 'amount_texture' belong to type = \"mix\"",
+            ));
+        }
+        self.type_params(&entry, type_name, t, &mut params)?;
         Ok(MaterialDesc {
             emission,
             two_sided: t.two_sided.or(base.map(|m| m.two_sided)).unwrap_or(false),

@@ -15,6 +15,7 @@ mod builder;
 mod camera;
 mod error;
 mod load;
+mod mix;
 pub mod pbrt;
 mod warning;
 mod wavefront;
@@ -22,6 +23,7 @@ mod wavefront;
 pub use camera::{Camera, CameraDesc, FovAxis};
 pub use error::SceneError;
 pub use load::{load, load_parts, LoadOptions};
+pub use mix::Mix;
 pub use warning::Warning;
 
 /// The largest coordinate a scene may have: f32 positions there are still 1/16 apart, so a
@@ -126,6 +128,9 @@ pub struct Scene {
     pub materials: Vec<Material>,
     /// Parallel to `materials`.
     pub material_textures: Vec<MaterialTextures>,
+    /// Parallel to `materials` where any is a mix, which hits resolve to one of its two;
+    /// empty when none is.
+    pub mixes: Vec<Option<Mix>>,
     pub textures: Vec<Arc<Texture>>,
     pub shading: MeshShading,
     pub lights: Lights,
@@ -153,6 +158,8 @@ pub struct SceneParts {
     pub materials: Vec<Material>,
     /// Parallel to `materials`.
     pub material_textures: Vec<MaterialTextures>,
+    /// As [`Scene::mixes`].
+    pub mixes: Vec<Option<Mix>>,
     /// One decoded copy per file.
     pub textures: Vec<Arc<Texture>>,
     pub shading: MeshShading,
@@ -211,6 +218,7 @@ impl Scene {
             sphere_materials: parts.sphere_materials,
             materials: parts.materials,
             material_textures: parts.material_textures,
+            mixes: parts.mixes,
             textures: parts.textures,
             shading: parts.shading,
             lights,
@@ -243,7 +251,31 @@ impl Scene {
             Primitive::Triangle(i) => self.triangle_materials[i as usize],
             Primitive::Sphere(i) => self.sphere_materials[i as usize],
         };
-        self.material(material).kind.is_delta()
+        self.material(self.resolve(material, hit)).kind.is_delta()
+    }
+
+    /// The material at the point of `hit` for the material `material` of its primitive: a
+    /// mix resolved (module `mix`), any other as it is.
+    pub fn resolve(&self, mut material: u32, hit: &Hit) -> u32 {
+        for _ in 0..mix::MAX_NESTING {
+            let Some(Some(m)) = self.mixes.get(material as usize) else {
+                return material;
+            };
+            let amount = match m.amount_texture {
+                Some(t) => self.textures[t as usize].lookup(self.hit_uv(hit)).average(),
+                None => m.amount,
+            };
+            material = m.choose(amount, hit);
+        }
+        material
+    }
+
+    /// The texture coordinates of a backend hit.
+    fn hit_uv(&self, hit: &Hit) -> Vec2 {
+        match hit.primitive {
+            Primitive::Triangle(i) => self.triangle_uv(i, hit),
+            Primitive::Sphere(_) => sphere_uv(hit.ng.normalize()),
+        }
     }
 
     /// Turns a backend hit into a surface point with its material, light, shading normal and
@@ -256,7 +288,7 @@ impl Scene {
             |material: u32| self.material_textures[material as usize] != Default::default();
         let (material, light, ns, uv) = match hit.primitive {
             Primitive::Triangle(i) => {
-                let material = self.triangle_materials[i as usize];
+                let material = self.resolve(self.triangle_materials[i as usize], &hit);
                 let uv = if textured(material) {
                     self.triangle_uv(i, &hit)
                 } else {
@@ -270,7 +302,7 @@ impl Scene {
                 )
             }
             Primitive::Sphere(i) => {
-                let material = self.sphere_materials[i as usize];
+                let material = self.resolve(self.sphere_materials[i as usize], &hit);
                 let uv = if textured(material) {
                     sphere_uv(ng)
                 } else {

@@ -1,44 +1,19 @@
-//! pbrt-v4's materials mapped onto vmerge's BSDFs (the table in docs/pbrt.md, "Materials"): the Material,
-//! MakeNamedMaterial and NamedMaterial directives, the mapping of each material type, and its
-//! arithmetic (Fresnel reflectance at normal incidence, roughness to a Phong exponent, the RGB
-//! values of pbrt's named metal spectra). Conductors, dielectrics and thin dielectrics are
-//! vmerge's own types of the same names. The mapping conserves energy for reflectances up to
-//! 1 (a coated diffuse's kd = reflectance x (1 - F0) beside ks = F0); the builder's rule
+//! pbrt-v4's materials mapped onto vmerge's BSDFs (the table in docs/pbrt.md, "Materials"): the
+//! Material, MakeNamedMaterial and NamedMaterial directives, the mapping of each material type,
+//! and the RGB values of pbrt's named metal spectra. Conductors, dielectrics and thin dielectrics are vmerge's own types of the same
+//! names; `diffusetransmission`, `coateddiffuse`, `coatedconductor` and `mix` map to their own
+//! models. Reflectances are clamped to [0, 1] as pbrt-v4 clamps them; the builder's rule
 //! handles what a file states beyond that.
 
 use super::import::{Importer, Loc};
-use super::parser::{Directive, ParamList, ParamType, Spectrum};
+use super::parser::{Directive, ParamList, ParamType, Spectrum, Values};
 use super::textures::Tex;
-use crate::bsdf::{EnergyFix, MaterialKind, Params};
+use crate::bsdf::{EnergyFix, MaterialKind, ParamValue, Params};
 use crate::color::Rgb;
 use crate::files::snippet;
 use crate::scene::builder::{round3, MaterialDesc, Origin};
+use crate::scene::Mix;
 use crate::scene::SceneError;
-
-/// The largest Phong exponent a mapped material gets: past it, f32 cannot resolve the lobe
-/// (its width, sqrt(2/n) rad, nears the spacing of cosines close to 1).
-pub const MAX_EXPONENT: f32 = 10_000.0;
-
-/// pbrt-v4's `TrowbridgeReitzDistribution::RoughnessToAlpha` (used when `remaproughness`).
-pub fn roughness_to_alpha(roughness: f32) -> f32 {
-    roughness.max(0.0).sqrt()
-}
-
-/// The Phong exponent with the same lobe width as a microfacet distribution of roughness
-/// `alpha`: n = 2 / alpha^2 - 2 (Walter et al. 2007, the Beckmann-Phong correspondence),
-/// clamped to [1, MAX_EXPONENT].
-pub fn phong_exponent(alpha: f32) -> f32 {
-    if alpha <= 0.0 {
-        return MAX_EXPONENT;
-    }
-    (2.0 / (alpha * alpha) - 2.0).clamp(1.0, MAX_EXPONENT)
-}
-
-/// Reflectance at normal incidence of a dielectric interface of relative index `eta`.
-pub fn dielectric_f0(eta: f32) -> f32 {
-    let r = (eta - 1.0) / (eta + 1.0);
-    r * r
-}
 
 /// RGB values of pbrt's named metal spectra (`"metal-Au-eta"`, ...): the spectra averaged
 /// over the sRGB primaries' bands, the values renderers that work in RGB use for them.
@@ -122,35 +97,6 @@ impl Importer {
         }
     }
 
-    /// The microfacet alpha of a material's `roughness` (or the mean of `uroughness` and
-    /// `vroughness`), remapped as pbrt does unless `remaproughness` is false.
-    pub(super) fn alpha(&mut self, loc: Loc, params: &ParamList) -> Result<f32, SceneError> {
-        let r = self.float_param(loc, params, "roughness", 0.0)?;
-        let u = self.float_param(loc, params, "uroughness", 0.0)?;
-        let v = self.float_param(loc, params, "vroughness", 0.0)?;
-        let roughness = match (u, v) {
-            (None, None) => r.unwrap_or(0.0),
-            (u, v) => {
-                let (u, v) = (u.or(r).unwrap_or(0.0), v.or(r).unwrap_or(0.0));
-                if (u - v).abs() > 1e-6 {
-                    self.warn(loc, format!("anisotropic roughness ({u}, {v}) averaged"));
-                }
-                0.5 * (u + v)
-            }
-        };
-        if !(roughness >= 0.0 && roughness.is_finite()) {
-            return Err(self.at(loc, format!("roughness {roughness} is negative")));
-        }
-        let remap = params
-            .bool("remaproughness", true)
-            .map_err(self.pe(loc.file))?;
-        Ok(if remap {
-            roughness_to_alpha(roughness)
-        } else {
-            roughness
-        })
-    }
-
     /// A microfacet material's `roughness`, `uroughness`, `vroughness` and `remaproughness`
     /// as the parameters of vmerge's microfacet types (which read them the same way).
     pub(super) fn roughness_params(
@@ -203,17 +149,43 @@ impl Importer {
             "diffuse" => lambert(albedo(self, "reflectance", Rgb::splat(0.5))?),
             "coateddiffuse" => {
                 let reflectance = albedo(self, "reflectance", Rgb::splat(0.5))?;
-                let eta = self.float_param(loc, p, "eta", 1.5)?.unwrap_or(1.5);
-                let alpha = self.alpha(loc, p)?;
-                let f0 = dielectric_f0(eta);
-                // The coating's layer parameters have no counterpart in Phong.
-                p.mark_used(&["thickness", "g", "maxdepth", "nsamples", "albedo"]);
-                let exponent = phong_exponent(alpha);
-                notes.push(format!(
-                    "coateddiffuse as Phong: kd = reflectance x (1 - F0), ks = F0 = {f0:.3}, exponent {exponent:.0} from alpha {alpha}"
-                ));
-                factor = Rgb::splat(1.0 - f0);
-                phong(reflectance * (1.0 - f0), Rgb::splat(f0), exponent)
+                let mut params = self.coating(loc, p, "")?;
+                params.set("eta", ParamValue::Number(self.eta_param(loc, p, "eta")?));
+                (
+                    "coateddiffuse",
+                    params.with_color("reflectance", unit(reflectance)),
+                )
+            }
+            "coatedconductor" => {
+                let given = |n: &str| p.params.iter().any(|q| q.name == n);
+                if given("reflectance") && (given("conductor.eta") || given("conductor.k")) {
+                    return Err(self.at(
+                        loc,
+                        "coatedconductor: \"reflectance\" and \"conductor.eta\"/\"conductor.k\" exclude each other".to_string(),
+                    ));
+                }
+                let mut params = self.coating(loc, p, "interface.")?;
+                params.set(
+                    "interface.eta",
+                    ParamValue::Number(self.eta_param(loc, p, "interface.eta")?),
+                );
+                let (u, v) = self.roughnesses(loc, p, "conductor.")?;
+                params = params
+                    .with_number("conductor.uroughness", u)
+                    .with_number("conductor.vroughness", v);
+                if given("reflectance") {
+                    let r = albedo(self, "reflectance", Rgb::splat(0.5))?;
+                    params = params.with_color("reflectance", unit(r));
+                } else {
+                    let cu = |n| named_spectrum(n).unwrap_or(Rgb::WHITE);
+                    let eta =
+                        self.constant_spectrum(loc, p, "conductor.eta", cu("metal-Cu-eta"))?;
+                    let k = self.constant_spectrum(loc, p, "conductor.k", cu("metal-Cu-k"))?;
+                    params = params
+                        .with_color("conductor.eta", eta)
+                        .with_color("conductor.k", k);
+                }
+                ("coatedconductor", params)
             }
             "conductor" => {
                 let params = self.roughness_params(loc, p)?;
@@ -274,16 +246,16 @@ impl Importer {
             }
             "diffusetransmission" => {
                 let reflectance = albedo(self, "reflectance", Rgb::splat(0.25))?;
+                let transmittance =
+                    self.constant_spectrum(loc, p, "transmittance", Rgb::splat(0.25))?;
+                // pbrt-v4 scales both and clamps each to [0, 1].
                 let scale = p.float("scale", 1.0).map_err(&pe)?;
-                p.mark_used(&["transmittance"]);
-                notes.push(
-                    "diffusetransmission as lambert of its reflectance (no transmission)".into(),
-                );
                 factor = Rgb::splat(scale);
-                lambert(reflectance * scale)
+                diffuse_transmission(unit(reflectance * scale), unit(transmittance * scale))
             }
             "interface" => return self.interface_material(loc, name),
-            "coatedconductor" | "measured" | "mix" | "hair" | "subsurface" => {
+            "mix" => return self.mix(loc, name, p),
+            "measured" | "hair" | "subsurface" => {
                 let kd = match p.params.iter().any(|q| q.name == "reflectance") {
                     true => albedo(self, "reflectance", Rgb::splat(0.5))?,
                     false => Rgb::splat(0.5),
@@ -329,6 +301,109 @@ impl Importer {
         let index = self.builder.material(&origin, material)?;
         self.material_textures
             .push(texture.map(|(path, scale, loc)| (path, scale * factor, loc)));
+        Ok(index)
+    }
+
+    /// A roughness pair as pbrt-v4 reads it under `prefix`: `uroughness` and `vroughness`,
+    /// each defaulting to `roughness`, then 0.
+    fn roughnesses(
+        &mut self,
+        loc: Loc,
+        p: &ParamList,
+        prefix: &str,
+    ) -> Result<(f32, f32), SceneError> {
+        let get = |im: &mut Importer, n: &str| im.float_param(loc, p, &format!("{prefix}{n}"), 0.0);
+        let common = get(self, "roughness")?;
+        let u = get(self, "uroughness")?.or(common).unwrap_or(0.0);
+        let v = get(self, "vroughness")?.or(common).unwrap_or(0.0);
+        for r in [u, v] {
+            if !(r >= 0.0 && r.is_finite()) {
+                return Err(self.at(loc, format!("{prefix}roughness {r} is negative")));
+            }
+        }
+        Ok((u, v))
+    }
+
+    /// The parameters of a layered material's coating (its interface's roughness under
+    /// `prefix`, the slab and pbrt's walk), for the coated types.
+    fn coating(&mut self, loc: Loc, p: &ParamList, prefix: &str) -> Result<Params, SceneError> {
+        let pe = self.pe(loc.file);
+        let (u, v) = self.roughnesses(loc, p, prefix)?;
+        let thickness = self.float_param(loc, p, "thickness", 0.01)?.unwrap_or(0.01);
+        if !(thickness >= 0.0 && thickness.is_finite()) {
+            return Err(self.at(loc, format!("thickness {thickness} is negative")));
+        }
+        let medium = self.constant_spectrum(loc, p, "albedo", Rgb::BLACK)?;
+        let max_depth = p.int("maxdepth", 10).map_err(&pe)?;
+        // The model is deterministic (bsdf/layer.rs): pbrt's samples per evaluation and the
+        // phase function's asymmetry (the medium's scattering is taken as forward) do not
+        // enter it.
+        p.mark_used(&["nsamples", "g"]);
+        let remap = p.bool("remaproughness", true).map_err(&pe)?;
+        Ok(Params::new()
+            .with_number(&format!("{prefix}uroughness"), u)
+            .with_number(&format!("{prefix}vroughness"), v)
+            .with_number("remaproughness", if remap { 1.0 } else { 0.0 })
+            .with_number("thickness", thickness)
+            .with_color("albedo", unit(medium))
+            .with_number("maxdepth", max_depth.clamp(0, 1 << 20) as f32))
+    }
+
+    /// An interface's index: a float, or a spectrum (named glasses by their mean); 1.5 when
+    /// absent, and pbrt's 0 taken as 1.
+    fn eta_param(&mut self, loc: Loc, p: &ParamList, name: &str) -> Result<f32, SceneError> {
+        let eta = match p.params.iter().find(|q| q.name == name).map(|q| q.ty) {
+            None => 1.5,
+            Some(ParamType::Float) => self.float_param(loc, p, name, 1.5)?.unwrap_or(1.5),
+            Some(_) => self
+                .constant_spectrum(loc, p, name, Rgb::splat(1.5))?
+                .average(),
+        };
+        if eta.is_nan() || eta < 0.0 {
+            return Err(self.at(loc, format!("{name} {eta} is negative")));
+        }
+        Ok(if eta == 0.0 { 1.0 } else { eta })
+    }
+
+    /// pbrt-v4's MixMaterial: two named materials and the probability `amount` of the second
+    /// (module `scene::mix`).
+    fn mix(&mut self, loc: Loc, name: &str, p: &ParamList) -> Result<u32, SceneError> {
+        let names = match p.params.iter().find(|q| q.name == "materials") {
+            Some(q) => match &q.values {
+                Values::Strs(v) if q.ty == ParamType::Str && v.len() == 2 => v.clone(),
+                _ => {
+                    return Err(self.at(
+                        Loc {
+                            line: q.line,
+                            ..loc
+                        },
+                        "mix: \"string materials\" must name two materials".to_string(),
+                    ))
+                }
+            },
+            None => {
+                return Err(self.at(loc, "mix without \"string materials\"".to_string()));
+            }
+        };
+        p.mark_used(&["materials"]);
+        let mut materials = [0u32; 2];
+        for (slot, m) in materials.iter_mut().zip(&names) {
+            *slot = *self
+                .named_materials
+                .get(m)
+                .ok_or_else(|| self.at(loc, format!("mix: no material named '{}'", snippet(m))))?;
+        }
+        let amount = self.float_param(loc, p, "amount", 0.5)?.unwrap_or(0.5);
+        if !(0.0..=1.0).contains(&amount) {
+            return Err(self.at(loc, format!("mix: amount {amount} is not in [0, 1]")));
+        }
+        let mix = Mix {
+            materials,
+            amount,
+            amount_texture: None,
+        };
+        let index = self.builder.mix(name.to_string(), mix);
+        self.material_textures.push(None);
         Ok(index)
     }
 
@@ -441,12 +516,20 @@ fn lambert(kd: Rgb) -> (&'static str, Params) {
     ("lambert", Params::new().with_color("kd", kd))
 }
 
-fn phong(kd: Rgb, ks: Rgb, exponent: f32) -> (&'static str, Params) {
+/// Each channel clamped to [0, 1], as pbrt-v4 clamps reflectances.
+fn unit(c: Rgb) -> Rgb {
+    Rgb::new(
+        c.r.clamp(0.0, 1.0),
+        c.g.clamp(0.0, 1.0),
+        c.b.clamp(0.0, 1.0),
+    )
+}
+
+fn diffuse_transmission(r: Rgb, t: Rgb) -> (&'static str, Params) {
     let params = Params::new()
-        .with_color("kd", kd)
-        .with_color("ks", ks)
-        .with_number("exponent", exponent);
-    ("phong", params)
+        .with_color("reflectance", r)
+        .with_color("transmittance", t);
+    ("diffusetransmission", params)
 }
 
 fn glass(ior: f32) -> (&'static str, Params) {
@@ -458,8 +541,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn fresnel_and_exponents() {
-        assert!((dielectric_f0(1.5) - 0.04).abs() < 1e-6);
+    fn named_metals() {
         // Silver reflects over 90 % at normal incidence.
         let ag = crate::bsdf::fresnel::complex(
             1.0,
@@ -470,10 +552,5 @@ mod tests {
             ag.min_component() > 0.9 && ag.max_component() < 1.0,
             "{ag:?}"
         );
-        assert!((phong_exponent(0.1) - 198.0).abs() < 1e-3);
-        assert_eq!(phong_exponent(0.0), MAX_EXPONENT);
-        assert_eq!(phong_exponent(0.001), MAX_EXPONENT);
-        assert_eq!(phong_exponent(2.0), 1.0);
-        assert_eq!(roughness_to_alpha(0.25), 0.5);
     }
 }
