@@ -12,7 +12,7 @@
 //! emitting that point and direction, per area times solid angle). Light selection
 //! probabilities are not included; [`Lights`] picks lights in proportion to their power.
 
-use crate::accel::{Geometry, Ray};
+use crate::accel::{Geometry, Ray, TriangleAlpha};
 use crate::bsdf::Material;
 use crate::color::Rgb;
 use crate::frame::Frame;
@@ -40,12 +40,14 @@ const NO_LIGHT: u32 = u32::MAX;
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum Light {
-    /// An emissive triangle, radiating `radiance` on the side of its normal.
+    /// An emissive triangle, radiating `radiance` on the side of its normal where its
+    /// `alpha`, if any, does not cut it out.
     Triangle {
         vertices: [Vec3; 3],
         normal: Vec3,
         area: f32,
         radiance: Rgb,
+        alpha: Option<Arc<TriangleAlpha>>,
     },
     /// An emissive sphere, radiating outwards.
     Sphere {
@@ -193,10 +195,17 @@ impl Light {
                 normal,
                 area,
                 radiance,
+                ref alpha,
             } => {
                 let (b1, b2) = sampling::uniform_triangle(u);
                 let p = (1.0 - b1 - b2) * vertices[0] + b1 * vertices[1] + b2 * vertices[2];
-                Some((p, normal, 1.0 / area, radiance))
+                // A ray meets a cut-out point with probability alpha (clamped, `accel::alpha`),
+                // so that is the share of the radiance a sampled point carries.
+                let radiance = match alpha {
+                    Some(a) => radiance * a.value(b1, b2).clamp(0.0, 1.0),
+                    None => radiance,
+                };
+                (!radiance.is_black()).then_some((p, normal, 1.0 / area, radiance))
             }
             Light::Sphere {
                 center,
@@ -475,6 +484,7 @@ impl Lights {
                 normal: cross.normalize(),
                 area,
                 radiance: emission,
+                alpha: geometry.cutouts.get(i as u32).cloned().map(Arc::new),
             });
         }
         let mut sphere_lights = vec![NO_LIGHT; geometry.spheres.len()];
