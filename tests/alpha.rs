@@ -71,10 +71,7 @@ fn rays(n: usize) -> Vec<Ray> {
 /// short of the back quad, and both in packets of 8.
 fn passes(a: &dyn Accel, rays: &[Ray]) -> [Vec<bool>; 4] {
     let through = |hit: Option<vmerge::accel::Hit>| {
-        matches!(
-            hit.map(|h| h.primitive),
-            Some(Primitive::Triangle(2 | 3))
-        )
+        matches!(hit.map(|h| h.primitive), Some(Primitive::Triangle(2 | 3)))
     };
     let short = |r: &Ray| Ray { tmax: 1.5, ..*r };
     let mut out: [Vec<bool>; 4] = Default::default();
@@ -266,11 +263,15 @@ fn techniques_and_backends_agree_through_cut_outs() {
     std::fs::write(p.join("light.obj"), horizontal(1.0, -0.2, 1.2, false)).unwrap();
     write_alpha_png(
         &p.join("leaf.png"),
-        [255, 0, 0, 255, 0, 255, 128, 0, 0, 0, 255, 255, 64, 0, 255, 0],
+        [
+            255, 0, 0, 255, 0, 255, 128, 0, 0, 0, 255, 255, 64, 0, 255, 0,
+        ],
     );
     write_alpha_png(
         &p.join("light.png"),
-        [255, 255, 0, 0, 255, 255, 0, 0, 0, 0, 255, 255, 0, 0, 255, 255],
+        [
+            255, 255, 0, 0, 255, 255, 0, 0, 0, 0, 255, 255, 0, 0, 255, 255,
+        ],
     );
     let toml = r#"
 [render]
@@ -325,4 +326,29 @@ alpha = "light.png"
     if let [embree, bvh] = &by_backend[..] {
         assert_means_agree("pt: embree vs bvh", embree, bvh);
     }
+}
+
+/// The pbrt-v4 comparison scene's cut-outs load: an alpha image texture on the light and on
+/// the leaf, a constant on the panel.
+#[test]
+fn the_pbrt_scene_loads_its_cut_outs() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/pbrt-compare/alpha-cutout.pbrt");
+    let options = LoadOptions {
+        accel: AccelKind::Bvh,
+        lenient: false,
+        shading_normals: true,
+    };
+    let scene = scene::load(&path, &options).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.geometry.cutouts.len(), 6);
+    let about_alpha = |w: &&scene::Warning| w.message.contains("alpha");
+    assert!(
+        !scene.warnings.iter().any(|w| about_alpha(&w)),
+        "{:?}",
+        scene.warnings
+    );
+    let constant = (0..scene.geometry.triangles.len() as u32)
+        .filter_map(|t| scene.geometry.cutouts.get(t))
+        .filter(|a| a.alpha == Alpha::Constant(0.5))
+        .count();
+    assert_eq!(constant, 2);
 }

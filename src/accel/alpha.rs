@@ -183,7 +183,10 @@ mod tests {
         // Each decile holds n / 10 within 5 standard deviations of a binomial count.
         let sd = (n as f64 * 0.1 * 0.9).sqrt();
         for count in below {
-            assert!((count as f64 - n as f64 / 10.0).abs() < 5.0 * sd, "{below:?}");
+            assert!(
+                (count as f64 - n as f64 / 10.0).abs() < 5.0 * sd,
+                "{below:?}"
+            );
         }
     }
 

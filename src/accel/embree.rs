@@ -106,7 +106,10 @@ unsafe extern "C" fn cutout_filter(args: *const sys::RTCFilterFunctionNArguments
                 tmin: field(3),
                 tmax: f32::INFINITY,
             };
-            let (u, v) = (f32::from_bits(hit[3 * n + i]), f32::from_bits(hit[4 * n + i]));
+            let (u, v) = (
+                f32::from_bits(hit[3 * n + i]),
+                f32::from_bits(hit[4 * n + i]),
+            );
             let Some(&triangle) = filter.triangles.get(hit[5 * n + i] as usize) else {
                 continue;
             };
@@ -197,14 +200,13 @@ impl EmbreeScene {
             SphereTests::Embree => (geometry.spheres.clone(), Vec::new()),
             SphereTests::Direct => (Vec::new(), geometry.spheres.clone()),
         };
-        let (opaque_triangles, cutout_triangles): (Vec<u32>, Vec<u32>) = if geometry
-            .cutouts
-            .is_empty()
-        {
-            (Vec::new(), Vec::new())
-        } else {
-            (0..geometry.triangles.len() as u32).partition(|&i| geometry.cutouts.get(i).is_none())
-        };
+        let (opaque_triangles, cutout_triangles): (Vec<u32>, Vec<u32>) =
+            if geometry.cutouts.is_empty() {
+                (Vec::new(), Vec::new())
+            } else {
+                (0..geometry.triangles.len() as u32)
+                    .partition(|&i| geometry.cutouts.get(i).is_none())
+            };
         let indices = |ids: &[u32]| -> Vec<[u32; 3]> {
             ids.iter()
                 .map(|&i| geometry.triangles[i as usize])
@@ -335,10 +337,7 @@ impl EmbreeScene {
             // SAFETY: `geometry` is valid; `filter` is boxed in `self` and outlives the scene,
             // and the filter functions only read it.
             unsafe {
-                sys::rtcSetGeometryUserData(
-                    geometry,
-                    filter as *const CutoutFilter as *mut c_void,
-                );
+                sys::rtcSetGeometryUserData(geometry, filter as *const CutoutFilter as *mut c_void);
                 sys::rtcSetGeometryIntersectFilterFunction(geometry, Some(cutout_filter));
                 sys::rtcSetGeometryOccludedFilterFunction(geometry, Some(cutout_filter));
             }

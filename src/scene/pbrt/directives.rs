@@ -70,19 +70,25 @@ const DIRECTIVES: &[Spec] = &[
     spec("Accelerator", StringsParams(1), Options, Importer::ignored),
     spec("ColorSpace", Strings(1), Anywhere, Importer::ignored),
     spec("Option", ParamsOnly, Anywhere, Importer::ignored),
+    // What vmerge cannot render yet: each warned at its line.
     spec(
         "MakeNamedMedium",
         StringsParams(1),
         Anywhere,
-        Importer::ignored,
+        Importer::unsupported,
     ),
     spec(
         "MediumInterface",
         OneOrTwoStrings,
         Anywhere,
-        Importer::ignored,
+        Importer::unsupported,
     ),
-    spec("Attribute", StringsParams(1), Anywhere, Importer::ignored),
+    spec(
+        "Attribute",
+        StringsParams(1),
+        Anywhere,
+        Importer::unsupported,
+    ),
     // Files and blocks.
     spec("Include", Strings(1), Anywhere, Importer::include),
     spec("Import", Strings(1), Anywhere, Importer::include),

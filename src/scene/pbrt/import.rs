@@ -14,7 +14,7 @@ use crate::light::{Light, SkyDesc};
 use crate::scene::builder::{Builder, Contents};
 use crate::scene::{CameraDesc, FovAxis, RenderDefaults, SceneError, SceneParts, Warning};
 use glam::{DMat4, Vec3};
-use std::collections::{BTreeSet, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// A place in a scene file: index into `Importer::files`, and the line.
@@ -77,7 +77,15 @@ pub(super) struct Importer {
     pub(super) objects: HashMap<String, Vec<ShapeRecord>>,
     pub(super) current_object: Option<(String, Vec<ShapeRecord>)>,
     pub(super) shapes: Vec<ShapeRecord>,
-    pub(super) ignored_directives: BTreeSet<String>,
+    /// Shapes left out (unsupported, no surface, missing file), and what they were.
+    pub(super) skipped_shapes: Vec<(Loc, String)>,
+    /// The materials of kind `interface`: their shapes are no surface.
+    pub(super) interfaces: HashSet<u32>,
+    /// Directives whose settings vmerge's own replace, each with where it came first.
+    pub(super) ignored_directives: BTreeMap<String, Loc>,
+    /// Each distinct warning once: where it came first, and how many times more.
+    pub(super) warnings: Vec<(Loc, String, usize)>,
+    pub(super) warning_index: HashMap<String, usize>,
 
     /// Per material of the builder: the image its reflectance comes from, the factor on its
     /// texels, and the Texture directive.
@@ -119,7 +127,11 @@ pub fn import(path: &Path, lenient: bool) -> Result<SceneParts, SceneError> {
         objects: HashMap::new(),
         current_object: None,
         shapes: Vec::new(),
-        ignored_directives: BTreeSet::new(),
+        skipped_shapes: Vec::new(),
+        interfaces: HashSet::new(),
+        ignored_directives: BTreeMap::new(),
+        warnings: Vec::new(),
+        warning_index: HashMap::new(),
         material_textures: Vec::new(),
         default_material: None,
         emissive: HashMap::new(),
@@ -140,10 +152,16 @@ pub fn import(path: &Path, lenient: bool) -> Result<SceneParts, SceneError> {
             "the file has no WorldBegin".to_string(),
         ));
     }
-    if !im.ignored_directives.is_empty() {
-        let names: Vec<_> = im.ignored_directives.iter().cloned().collect();
-        let w = Warning::file(
-            &im.files[0],
+    // One line for them all, at the first of them.
+    if let Some(&first) = im
+        .ignored_directives
+        .values()
+        .min_by_key(|l| (l.file, l.line))
+    {
+        let names: Vec<_> = im.ignored_directives.keys().cloned().collect();
+        let w = Warning::at(
+            &im.files[first.file],
+            first.line,
             format!(
                 "ignored (vmerge's own settings apply): {}",
                 names.join(", ")
@@ -163,9 +181,31 @@ impl Importer {
         }
     }
 
+    /// Warns at `loc`; a message repeated elsewhere is counted, not repeated (a scene with
+    /// thousands of curves gets one line, "N more like this").
     pub(super) fn warn(&mut self, loc: Loc, message: impl Into<String>) {
-        let w = Warning::at(&self.files[loc.file], loc.line, message);
-        self.builder.warn(w);
+        let message = message.into();
+        match self.warning_index.get(&message) {
+            Some(&i) => self.warnings[i].2 += 1,
+            None => {
+                self.warning_index
+                    .insert(message.clone(), self.warnings.len());
+                self.warnings.push((loc, message, 0));
+            }
+        }
+    }
+
+    /// Hands the warnings, counted, to the builder.
+    fn flush_warnings(&mut self) {
+        for (loc, message, more) in std::mem::take(&mut self.warnings) {
+            let message = match more {
+                0 => message,
+                n => format!("{message} ({n} more like this)"),
+            };
+            let w = Warning::at(&self.files[loc.file], loc.line, message);
+            self.builder.warn(w);
+        }
+        self.warning_index.clear();
     }
 
     /// Turns a parameter error into a scene error in `file`.
@@ -276,6 +316,18 @@ impl Importer {
             shading,
             dropped,
         } = self.lay_out_shapes()?;
+        if geometry.triangles.is_empty() && geometry.spheres.is_empty() {
+            if let Some((loc, what)) = self.skipped_shapes.first() {
+                let more = match self.skipped_shapes.len() - 1 {
+                    0 => String::new(),
+                    n => format!(" ({n} more shapes skipped)"),
+                };
+                return Err(self.at(
+                    *loc,
+                    format!("the scene has no geometry left: {what}; skipped{more}"),
+                ));
+            }
+        }
         self.builder.check_geometry(&geometry, dropped)?;
         self.load_textures()?;
         let env_map = self.env_map()?;
@@ -288,6 +340,7 @@ impl Importer {
             fov_axis: FovAxis::Shorter,
             mirrored: true,
         });
+        self.flush_warnings();
         let defaults = RenderDefaults {
             resolution: self.resolution.unwrap_or([1280, 720]),
             max_path_length: self.max_path_length.unwrap_or(6),

@@ -267,7 +267,8 @@ impl Importer {
                 factor = Rgb::splat(scale);
                 lambert(reflectance * scale)
             }
-            "coatedconductor" | "measured" | "mix" | "hair" | "subsurface" | "interface" => {
+            "interface" => return self.interface_material(loc, name),
+            "coatedconductor" | "measured" | "mix" | "hair" | "subsurface" => {
                 let kd = match p.params.iter().any(|q| q.name == "reflectance") {
                     true => albedo(self, "reflectance", Rgb::splat(0.5))?,
                     false => Rgb::splat(0.5),

@@ -5,7 +5,8 @@
 //! directive once (its form, where it may stand, its handler), `import` walks the files
 //! (Include/Import) and hands the result to the scene builder; the handlers live by concept:
 //! `state` (attributes, transforms, objects flattened, camera and settings), `shapes` (with
-//! `ply`, which reads the meshes in parallel, each file once), `material` (the rules that map
+//! `ply`, which reads the meshes in parallel, each file once, and `quadrics`, disks and
+//! cylinders as meshes), `material` (the rules that map
 //! pbrt's materials onto vmerge's BSDFs), `textures` and `lights`. Every error names the file
 //! and line; warnings too.
 
@@ -19,6 +20,7 @@ mod lights;
 mod material;
 mod parser;
 pub mod ply;
+mod quadrics;
 mod shapes;
 mod state;
 #[cfg(test)]

@@ -1,13 +1,18 @@
-//! Shapes: triangle and bilinear meshes, PLY files and spheres, recorded with their graphics
-//! state and laid out in world space at the end (instances expanded).
+//! Shapes: triangle and bilinear meshes, PLY files, spheres, and disks and cylinders (as
+//! meshes, `quadrics`), recorded with their graphics state and laid out in world space at the
+//! end (instances expanded). Shapes of an `interface` material are no surface and dropped.
 
 use super::import::{Importer, Loc};
 use super::parser::{Directive, ParamList, ParamType, ParseError};
 use super::ply::{self, PlyMesh};
+use super::quadrics;
 use super::textures::FloatTex;
 use crate::accel::{Geometry, Sphere};
+use crate::bsdf::Params;
+use crate::color::Rgb;
 use crate::files::{self, snippet, FileError, Kind};
 use crate::options::OptionName;
+use crate::scene::builder::{MaterialDesc, Origin};
 use crate::scene::{alpha, MeshShading, SceneError, MAX_COORDINATE};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
@@ -26,7 +31,12 @@ pub(super) enum MeshSource {
 #[derive(Clone, Debug)]
 pub(super) enum ShapeKind {
     Mesh(Arc<MeshSource>),
-    Sphere { radius: f64 },
+    Sphere {
+        radius: f64,
+    },
+    /// A disk or cylinder: its front is pbrt's quadric normal, which flips under
+    /// ReverseOrientation and under a transform that swaps handedness.
+    Quadric(Arc<PlyMesh>),
 }
 
 /// A shape with the graphics state it was declared in.
@@ -90,14 +100,50 @@ impl Importer {
                     radius: radius as f64,
                 }
             }
-            other @ ("disk" | "cylinder" | "loopsubdiv" | "curve" | "bilinearpatch") => {
-                self.warn(
-                    loc,
-                    format!(
-                        "Shape '{other}' not supported; skipped",
-                        other = snippet(other)
-                    ),
-                );
+            "disk" => {
+                let radius = p.float("radius", 1.0).map_err(&pe)?;
+                let inner = p.float("innerradius", 0.0).map_err(&pe)?;
+                let height = p.float("height", 0.0).map_err(&pe)?;
+                let phimax = self.phimax(loc, "disk", p)?;
+                if !(radius > 0.0 && radius.is_finite()) {
+                    return Err(
+                        self.at(loc, format!("Shape disk: radius {radius} is not positive"))
+                    );
+                }
+                if !(0.0..radius).contains(&inner) {
+                    return Err(self.at(
+                        loc,
+                        format!("Shape disk: innerradius {inner} is not in [0, radius {radius})"),
+                    ));
+                }
+                let mesh = quadrics::disk(radius.into(), inner.into(), height.into(), phimax);
+                ShapeKind::Quadric(Arc::new(mesh))
+            }
+            "cylinder" => {
+                let radius = p.float("radius", 1.0).map_err(&pe)?;
+                let z0 = p.float("zmin", -1.0).map_err(&pe)?;
+                let z1 = p.float("zmax", 1.0).map_err(&pe)?;
+                let phimax = self.phimax(loc, "cylinder", p)?;
+                if !(radius > 0.0 && radius.is_finite()) {
+                    return Err(self.at(
+                        loc,
+                        format!("Shape cylinder: radius {radius} is not positive"),
+                    ));
+                }
+                if z0.is_nan() || z1.is_nan() || z0 == z1 {
+                    return Err(self.at(
+                        loc,
+                        format!("Shape cylinder: zmin {z0} and zmax {z1} leave no height"),
+                    ));
+                }
+                // pbrt takes the two in either order.
+                let (zmin, zmax) = (z0.min(z1), z0.max(z1));
+                let mesh = quadrics::cylinder(radius.into(), zmin.into(), zmax.into(), phimax);
+                ShapeKind::Quadric(Arc::new(mesh))
+            }
+            other @ ("loopsubdiv" | "curve" | "bilinearpatch") => {
+                let what = format!("Shape '{other}' not supported", other = snippet(other));
+                self.skip_shape(loc, what);
                 p.mark_all_used();
                 return Ok(());
             }
@@ -110,8 +156,20 @@ impl Importer {
         };
         let mut alpha = self.shape_alpha(loc, p)?;
         if alpha.is_some() && matches!(kind, ShapeKind::Sphere { .. }) {
-            self.warn(loc, "Shape sphere: alpha (cut-outs) ignored; rendered opaque");
+            self.warn(
+                loc,
+                "Shape sphere: alpha (cut-outs) ignored; rendered opaque",
+            );
             alpha = None;
+        }
+        let base = self.current_material()?;
+        if self.interfaces.contains(&base) {
+            p.mark_all_used();
+            self.skip_shape(
+                loc,
+                "Shape with an 'interface' material: no surface, rays pass; the medium it bounds is ignored (participating media are not supported)".to_string(),
+            );
+            return Ok(());
         }
         let material = self.shape_material()?;
         let record = ShapeRecord {
@@ -127,6 +185,42 @@ impl Importer {
             None => self.shapes.push(record),
         }
         Ok(())
+    }
+
+    /// A shape left out of the scene: warned (once per kind, with a count), and remembered in
+    /// case nothing else is left.
+    pub(super) fn skip_shape(&mut self, loc: Loc, what: String) {
+        self.warn(loc, format!("{what}; skipped"));
+        self.skipped_shapes.push((loc, what));
+    }
+
+    /// A quadric's `phimax` in radians; pbrt clamps it to 360 degrees.
+    fn phimax(&self, loc: Loc, shape: &str, p: &ParamList) -> Result<f64, SceneError> {
+        let phimax = p.float("phimax", 360.0).map_err(self.pe(loc.file))?;
+        if !(phimax > 0.0) {
+            return Err(self.at(
+                loc,
+                format!("Shape {shape}: phimax {phimax} is not positive"),
+            ));
+        }
+        Ok(f64::from(phimax.min(360.0)).to_radians())
+    }
+
+    /// pbrt-v4's `interface` material: no surface at all. Shapes with it are dropped; the
+    /// material exists so that NamedMaterial and the graphics state can refer to it.
+    pub(super) fn interface_material(&mut self, loc: Loc, name: &str) -> Result<u32, SceneError> {
+        let origin = Origin {
+            file: self.files[loc.file].clone(),
+            line: Some(loc.line),
+            entry: format!("material '{name}'", name = snippet(name)),
+        };
+        let params = Params::new().with_color("kd", Rgb::BLACK);
+        let index = self
+            .builder
+            .material(&origin, MaterialDesc::new(name, "lambert", params))?;
+        self.material_textures.push(None);
+        self.interfaces.insert(index);
+        Ok(index)
     }
 
     /// Reads the PLY files (in parallel, each once), then lays all shapes out in order.
@@ -163,10 +257,7 @@ impl Importer {
                     return Err(self.at(loc, format!("Shape plymesh {}: {message}", path.display())))
                 }
                 Err(None) if self.lenient => {
-                    self.warn(
-                        loc,
-                        format!("Shape plymesh: {} is missing; skipped", path.display()),
-                    );
+                    self.skip_shape(loc, format!("Shape plymesh: {} is missing", path.display()));
                 }
                 Err(None) => {
                     return Err(self.at(
@@ -189,7 +280,7 @@ impl Importer {
         let mut alpha_images = HashMap::new();
         let shapes = std::mem::take(&mut self.shapes);
         for s in &shapes {
-            match &s.kind {
+            let mesh = match &s.kind {
                 ShapeKind::Sphere { radius } => {
                     let center = s.ctm.transform_point3(DVec3::ZERO);
                     let m = DMat3::from_mat4(s.ctm);
@@ -217,40 +308,49 @@ impl Importer {
                     }
                     geometry.spheres.push(Sphere { center, radius });
                     sphere_materials.push(s.material);
+                    continue;
                 }
-                ShapeKind::Mesh(source) => {
-                    let mesh = match &**source {
-                        MeshSource::Inline(m) => Arc::clone(m),
-                        MeshSource::Ply(path) => match meshes.get(path) {
-                            Some(m) => Arc::clone(m),
-                            None => continue,
-                        },
-                    };
-                    let first = geometry.positions.len();
-                    let first_triangle = geometry.triangles.len();
-                    dropped += place_mesh(
-                        &mesh,
-                        s,
-                        &mut geometry,
-                        &mut triangle_materials,
-                        &mut shading,
-                    );
-                    if let Some(tex) = &s.alpha {
-                        if let Some(a) = self.cutout_alpha(tex, &mut alpha_images)? {
-                            let triangles = first_triangle..geometry.triangles.len();
-                            alpha::cut_out(&mut geometry, &shading, triangles, &a);
-                        }
-                    }
-                    if let Some(p) = geometry.positions[first..]
-                        .iter()
-                        .find(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)
-                    {
-                        return Err(self.at(
-                            s.loc,
-                            format!("Shape: vertex {p} (after the transform) lies beyond +-{MAX_COORDINATE:e}, where f32 positions lose their precision"),
-                        ));
+                ShapeKind::Mesh(source) => match &**source {
+                    MeshSource::Inline(m) => Arc::clone(m),
+                    MeshSource::Ply(path) => match meshes.get(path) {
+                        Some(m) => Arc::clone(m),
+                        None => continue,
+                    },
+                },
+                ShapeKind::Quadric(m) => {
+                    // place_mesh turns each triangle to its vertex normals, which carry
+                    // pbrt's flips of a quadric's normal.
+                    let swaps = DMat3::from_mat4(s.ctm).determinant() < 0.0;
+                    if s.reverse_orientation ^ swaps {
+                        Arc::new(quadrics::flipped(m))
+                    } else {
+                        Arc::clone(m)
                     }
                 }
+            };
+            let first = geometry.positions.len();
+            let first_triangle = geometry.triangles.len();
+            dropped += place_mesh(
+                &mesh,
+                s,
+                &mut geometry,
+                &mut triangle_materials,
+                &mut shading,
+            );
+            if let Some(tex) = &s.alpha {
+                if let Some(a) = self.cutout_alpha(tex, &mut alpha_images)? {
+                    let triangles = first_triangle..geometry.triangles.len();
+                    alpha::cut_out(&mut geometry, &shading, triangles, &a);
+                }
+            }
+            if let Some(p) = geometry.positions[first..]
+                .iter()
+                .find(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)
+            {
+                return Err(self.at(
+                    s.loc,
+                    format!("Shape: vertex {p} (after the transform) lies beyond +-{MAX_COORDINATE:e}, where f32 positions lose their precision"),
+                ));
             }
         }
         Ok(Laid {

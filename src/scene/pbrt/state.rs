@@ -238,14 +238,30 @@ impl Importer {
         self.max_path_length = Some(depth as u32 + 1);
         d.params.mark_all_used();
         self.ignored_directives
-            .insert("Integrator (but maxdepth)".into());
+            .entry("Integrator (but maxdepth)".into())
+            .or_insert(loc);
         Ok(())
     }
 
     /// Directives whose settings vmerge's own replace: listed in one warning at the end.
-    pub(super) fn ignored(&mut self, _: Loc, d: &Directive) -> Result<(), SceneError> {
+    pub(super) fn ignored(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
         d.params.mark_all_used();
-        self.ignored_directives.insert(d.name.clone());
+        self.ignored_directives.entry(d.name.clone()).or_insert(loc);
+        Ok(())
+    }
+
+    /// Directives vmerge does not render: participating media (MakeNamedMedium,
+    /// MediumInterface) and default parameters (Attribute). One warning per kind, at the
+    /// first line, counted.
+    pub(super) fn unsupported(&mut self, loc: Loc, d: &Directive) -> Result<(), SceneError> {
+        d.params.mark_all_used();
+        let message = match d.name.as_str() {
+            "Attribute" => "Attribute: default parameters are not supported; ignored".to_string(),
+            name => format!(
+                "{name}: participating media are not supported; ignored (light travels as in a vacuum)"
+            ),
+        };
+        self.warn(loc, message);
         Ok(())
     }
 

@@ -293,3 +293,173 @@ fn object_instances_are_flattened() {
     assert_eq!(g.positions[0], Vec3::new(-1.0, 1.0, -1.0));
     assert_eq!(g.positions[4], Vec3::new(9.0, 1.0, -1.0));
 }
+
+/// Triangle `t`'s area and unit normal (its counter-clockwise side: the side that emits).
+fn triangle(p: &SceneParts, t: usize) -> (f32, Vec3) {
+    let [a, b, c] = p.geometry.triangles[t].map(|i| p.geometry.positions[i as usize]);
+    let n = (b - a).cross(c - a);
+    (0.5 * n.length(), n.normalize())
+}
+
+/// The warnings, each as `FILE:LINE: message` with the file's name alone.
+fn warnings(p: &SceneParts) -> Vec<String> {
+    p.warnings
+        .iter()
+        .map(|w| {
+            let file = w.file.as_ref().and_then(|f| f.file_name()).unwrap();
+            let line = w.line.map(|l| format!(":{l}")).unwrap_or_default();
+            format!("{}{line}: {}", file.to_string_lossy(), w.message)
+        })
+        .collect()
+}
+
+#[test]
+fn disks_and_cylinders_as_pbrt_defines_them() {
+    // A disk light turned to face -y: pbrt's normal is object +z, through the transform.
+    let src = "WorldBegin\nAttributeBegin\nAreaLightSource \"diffuse\" \"rgb L\" [2 2 2]\n\
+               Translate 0 1 0\nRotate 90 1 0 0\n\
+               Shape \"disk\" \"float radius\" 0.5 \"float innerradius\" 0.2 \"float phimax\" 270\n\
+               AttributeEnd\n\
+               Shape \"cylinder\" \"float radius\" 0.25 \"float zmin\" 0.5 \"float zmax\" -0.25\n";
+    let p = parts(src);
+    let disk: Vec<usize> = (0..p.geometry.triangles.len())
+        .filter(|&t| p.materials[p.triangle_materials[t] as usize].emission == Rgb::splat(2.0))
+        .collect();
+    let area: f32 = disk.iter().map(|&t| triangle(&p, t).0).sum();
+    let exact = 0.75 * std::f32::consts::PI * (0.25 - 0.04);
+    assert!((area / exact - 1.0).abs() < 1e-5, "{area} {exact}");
+    assert!(disk.iter().all(|&t| triangle(&p, t).1.y < -0.999));
+    let uvs = &p.shading.uvs;
+    let (us, vs): (Vec<f32>, Vec<f32>) = disk
+        .iter()
+        .flat_map(|&t| p.shading.triangle_uvs[t])
+        .map(|i| (uvs[i as usize].x, uvs[i as usize].y))
+        .unzip();
+    let range = |x: &[f32]| {
+        x.iter()
+            .fold((1.0f32, 0.0f32), |(a, b), &v| (a.min(v), b.max(v)))
+    };
+    assert_eq!((range(&us), range(&vs)), ((0.0, 1.0), (0.0, 1.0)));
+    // The cylinder takes zmin and zmax in either order and faces outwards.
+    let cylinder: Vec<usize> = (0..p.geometry.triangles.len())
+        .filter(|t| !disk.contains(t))
+        .collect();
+    let area: f32 = cylinder.iter().map(|&t| triangle(&p, t).0).sum();
+    let exact = std::f32::consts::TAU * 0.25 * 0.75;
+    assert!((area / exact - 1.0).abs() < 1e-5, "{area} {exact}");
+    for &t in &cylinder {
+        let [a, ..] = p.geometry.triangles[t].map(|i| p.geometry.positions[i as usize]);
+        assert!(triangle(&p, t).1.dot(Vec3::new(a.x, a.y, 0.0)) > 0.0);
+        assert!((-0.25..=0.5).contains(&a.z));
+    }
+    // ReverseOrientation flips a quadric, and so does a transform that swaps handedness (its
+    // normal is then the other side of the transformed normal, as pbrt's is).
+    let facing = |prefix: &str| {
+        let p = parts(&format!("WorldBegin\n{prefix}\nShape \"disk\"\n"));
+        triangle(&p, 0).1.z
+    };
+    assert!(facing("") > 0.999);
+    assert!(facing("ReverseOrientation") < -0.999);
+    assert!(facing("Scale -1 1 1") < -0.999);
+    assert!(facing("Scale -1 1 1\nReverseOrientation") > 0.999);
+    // Bad sizes name the line.
+    for (shape, what) in [
+        (
+            "\"disk\" \"float innerradius\" 1",
+            "innerradius 1 is not in [0, radius 1)",
+        ),
+        ("\"disk\" \"float radius\" 0", "radius 0 is not positive"),
+        (
+            "\"cylinder\" \"float zmin\" 1",
+            "zmin 1 and zmax 1 leave no height",
+        ),
+        (
+            "\"cylinder\" \"float phimax\" -5",
+            "phimax -5 is not positive",
+        ),
+    ] {
+        let src = format!("WorldBegin\n\nShape {shape}\n");
+        let e = error(&[("scene.pbrt", src.as_bytes())]);
+        assert!(
+            e.contains("scene.pbrt:3: Shape ") && e.contains(what),
+            "{e}"
+        );
+    }
+}
+
+#[test]
+fn interface_shapes_are_no_surface() {
+    let src = "WorldBegin\nMakeNamedMaterial \"boundary\" \"string type\" \"interface\"\n\
+               MakeNamedMedium \"fog\" \"string type\" \"homogeneous\"\n\
+               AttributeBegin\nNamedMaterial \"boundary\"\nMediumInterface \"fog\" \"\"\n\
+               Shape \"sphere\"\nShape \"trianglemesh\" {QUAD}\nAttributeEnd\n\
+               Shape \"trianglemesh\" {QUAD}\n"
+        .replace("{QUAD}", QUAD);
+    let p = parts(&src);
+    assert_eq!(p.geometry.spheres.len(), 0);
+    assert_eq!(p.geometry.triangles.len(), 2);
+    let w = warnings(&p);
+    let find = |s: &str| {
+        w.iter()
+            .filter(|x| x.contains(s))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    let dropped = find("'interface' material");
+    assert_eq!(dropped.len(), 1, "{w:?}");
+    assert!(
+        dropped[0].contains("scene.pbrt:7: ")
+            && dropped[0].contains("the medium it bounds is ignored")
+            && dropped[0].ends_with("(1 more like this)"),
+        "{w:?}"
+    );
+    assert!(
+        find("scene.pbrt:3: MakeNamedMedium: participating media are not supported").len() == 1
+    );
+    assert!(
+        find("scene.pbrt:6: MediumInterface: participating media are not supported").len() == 1
+    );
+    // Nothing but interfaces: the error says what was there.
+    let only = "WorldBegin\nMaterial \"interface\"\nShape \"sphere\"\n";
+    let e = error(&[("scene.pbrt", only.as_bytes())]);
+    assert!(
+        e.contains(
+            "scene.pbrt:3: the scene has no geometry left: Shape with an 'interface' material"
+        ),
+        "{e}"
+    );
+}
+
+#[test]
+fn skipped_shapes_are_warned_once_at_their_line() {
+    let curve = "Shape \"curve\" \"point3 P\" [0 0 0 1 0 0 1 1 0 0 1 0] \"float width\" 0.1\n";
+    let src = format!(
+        "WorldBegin\nAttribute \"shape\" \"float radius\" 2\n{curve}{curve}{curve}\
+         Shape \"loopsubdiv\" {QUAD}\nShape \"sphere\"\n"
+    );
+    let p = parts(&src);
+    let w = warnings(&p);
+    let about = |s: &str| {
+        w.iter()
+            .filter(|x| x.contains(s))
+            .cloned()
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(
+        about("curve"),
+        ["scene.pbrt:3: Shape 'curve' not supported; skipped (2 more like this)"],
+        "{w:?}"
+    );
+    assert_eq!(
+        about("loopsubdiv"),
+        ["scene.pbrt:6: Shape 'loopsubdiv' not supported; skipped"]
+    );
+    assert_eq!(about("scene.pbrt:2: Attribute: ").len(), 1, "{w:?}");
+    // A scene of curves alone says so, at the first curve.
+    let src = format!("WorldBegin\n{curve}{curve}");
+    let e = error(&[("scene.pbrt", src.as_bytes())]);
+    assert!(
+        e.contains("scene.pbrt:2: the scene has no geometry left: Shape 'curve' not supported; skipped (1 more shapes skipped)"),
+        "{e}"
+    );
+}
