@@ -356,8 +356,9 @@ impl Bvh {
             } else {
                 let index = current & INDEX_MASK;
                 let leaf = &self.leaves[index as usize];
-                let keeps = |triangle, b1, b2| self.cutouts.keeps(triangle, b1, b2, ray);
-                if let Some((t, u, v, lane)) = tri_setup.intersect4(leaf, ray.tmin, tmax, keeps) {
+                if let Some((t, u, v, lane)) =
+                    tri_setup.intersect4(leaf, ray.tmin, tmax, &self.cutouts, ray)
+                {
                     best = Some((t, u, v, HitRef::Triangle { leaf: index, lane }));
                     if any_hit {
                         return best.map(|hit| self.hit(ray, hit));
@@ -553,14 +554,15 @@ impl WatertightRay {
     }
 
     /// The nearest hit `(t, u, v, lane)` among the leaf's triangles with `t` in `[tmin, tmax]`
-    /// that `keeps(triangle, u, v)` lets count, asked for the leaf's cut-out lanes alone.
+    /// that `cutouts` lets count for `ray`, asked for the leaf's cut-out lanes alone.
     #[inline]
     fn intersect4(
         &self,
         leaf: &Leaf,
         tmin: f32,
         tmax: f32,
-        keeps: impl Fn(u32, f32, f32) -> bool,
+        cutouts: &Cutouts,
+        ray: &Ray,
     ) -> Option<(f32, f32, f32, usize)> {
         let [kx, ky, kz] = self.k;
         let [sx, sy, sz] = self.shear;
@@ -609,13 +611,8 @@ impl WatertightRay {
             (!outside & det.cmpne(zero) & t.cmpge(Vec4::splat(tmin)) & t.cmple(Vec4::splat(tmax)))
                 .bitmask()
                 & lanes;
-        let mut cut = hits & leaf.cutouts;
-        while cut != 0 {
-            let l = cut.trailing_zeros() as usize;
-            cut &= cut - 1;
-            if !keeps(leaf.triangles[l], v[l] * inv_det[l], w[l] * inv_det[l]) {
-                hits &= !(1 << l);
-            }
+        if hits & leaf.cutouts != 0 {
+            hits = cut_out_lanes(hits, leaf, [v, w, inv_det], cutouts, ray);
         }
         if hits == 0 {
             return None;
@@ -637,6 +634,28 @@ impl WatertightRay {
             best,
         ))
     }
+}
+
+/// `hits` without the cut-out lanes whose alpha removes the hit (barycentrics `v * inv_det`,
+/// `w * inv_det` from `[v, w, inv_det]`). Out of line: leaves without cut-outs never call it,
+/// and keeping it out keeps their test as it was.
+#[inline(never)]
+fn cut_out_lanes(
+    mut hits: u32,
+    leaf: &Leaf,
+    [v, w, inv_det]: [Vec4; 3],
+    cutouts: &Cutouts,
+    ray: &Ray,
+) -> u32 {
+    let mut cut = hits & leaf.cutouts;
+    while cut != 0 {
+        let l = cut.trailing_zeros() as usize;
+        cut &= cut - 1;
+        if !cutouts.keeps(leaf.triangles[l], v[l] * inv_det[l], w[l] * inv_det[l], ray) {
+            hits &= !(1 << l);
+        }
+    }
+    hits
 }
 
 impl Accel for Bvh {
