@@ -349,7 +349,7 @@ impl Importer {
         let (mut image, bytes) = alpha::read_image(path).map_err(|e| self.at(loc, e))?;
         self.builder.input(path, &bytes);
         for t in &mut image.texels {
-            *t = *t * scale;
+            *t *= scale;
         }
         let image = Arc::new(image);
         images.insert(key, Arc::clone(&image));
