@@ -197,7 +197,7 @@ impl Importer {
     /// A quadric's `phimax` in radians; pbrt clamps it to 360 degrees.
     fn phimax(&self, loc: Loc, shape: &str, p: &ParamList) -> Result<f64, SceneError> {
         let phimax = p.float("phimax", 360.0).map_err(self.pe(loc.file))?;
-        if !(phimax > 0.0) {
+        if phimax.is_nan() || phimax <= 0.0 {
             return Err(self.at(
                 loc,
                 format!("Shape {shape}: phimax {phimax} is not positive"),
