@@ -140,14 +140,6 @@ fn alpha_zero_and_one_are_exact() {
     }
 }
 
-/// A quad in the plane z = `z` from (x0, y0) to (x1, y1), facing +z, uv 0..1 over it.
-fn quad(z: f32, [x0, y0, x1, y1]: [f32; 4]) -> String {
-    format!(
-        "v {x0} {y0} {z}\nv {x1} {y0} {z}\nv {x1} {y1} {z}\nv {x0} {y1} {z}\n\
-         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n"
-    )
-}
-
 /// A quad in the plane y = `y` over x and z in [lo, hi], facing up or down, uv 0..1 over it.
 fn horizontal(y: f32, lo: f32, hi: f32, up: bool) -> String {
     let faces = if up {
