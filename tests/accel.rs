@@ -332,7 +332,7 @@ fn out_of_range_indices_are_rejected() {
     let g = Geometry {
         positions: vec![Vec3::ZERO; 2],
         triangles: vec![[0, 1, 2]],
-        spheres: vec![],
+        ..Default::default()
     };
     for kind in [AccelKind::Bvh, AccelKind::default_kind()] {
         let result = accel::build(kind, &g);

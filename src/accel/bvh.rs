@@ -6,10 +6,13 @@
 //! rare, sit beside it in a side table). Children are visited nearest first and a popped
 //! subtree farther than the closest hit so far is skipped.
 //!
+//! A leaf marks its cut-out triangles (`alpha.rs`), and only a hit on one of them pays for the
+//! alpha test.
+//!
 //! Triangles use the watertight test of Woop, Benthin and Wald (2013), as pbrt-v4 does, so rays
 //! through shared edges and vertices never slip between two triangles.
 
-use super::{Accel, AccelError, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
+use super::{Accel, AccelError, Cutouts, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
 use glam::{Vec3, Vec4};
 
 /// Axis-aligned box.
@@ -86,6 +89,8 @@ struct Leaf {
     triangles: [u32; LEAF_SIZE],
     /// How many lanes are used.
     count: u32,
+    /// Bit `lane` set where that lane's triangle is cut out.
+    cutouts: u32,
 }
 
 const LEAF_SIZE: usize = 4;
@@ -110,6 +115,7 @@ pub struct Bvh {
     leaf_spheres: Vec<[u32; 2]>,
     sphere_order: Vec<u32>,
     spheres: Vec<Sphere>,
+    cutouts: Cutouts,
 }
 
 /// The closest hit so far: a lane of a leaf or a sphere.
@@ -178,6 +184,7 @@ impl Bvh {
             leaf_spheres: Vec::new(),
             sphere_order: Vec::new(),
             spheres: geometry.spheres.clone(),
+            cutouts: geometry.cutouts.clone(),
         };
         if !prims.is_empty() {
             build_recursive(&mut prims, 0, 0, &mut binary);
@@ -248,6 +255,7 @@ impl Bvh {
             vertices: [[Vec4::NAN; 3]; 3],
             triangles: [0; LEAF_SIZE],
             count: 0,
+            cutouts: 0,
         };
         let first_sphere = self.sphere_order.len() as u32;
         for p in prims {
@@ -260,6 +268,9 @@ impl Bvh {
                         }
                     }
                     leaf.triangles[lane] = i;
+                    if geometry.cutouts.get(i).is_some() {
+                        leaf.cutouts |= 1 << lane;
+                    }
                     leaf.count += 1;
                 }
                 Primitive::Sphere(i) => self.sphere_order.push(i),
@@ -345,7 +356,9 @@ impl Bvh {
             } else {
                 let index = current & INDEX_MASK;
                 let leaf = &self.leaves[index as usize];
-                if let Some((t, u, v, lane)) = tri_setup.intersect4(leaf, ray.tmin, tmax) {
+                if let Some((t, u, v, lane)) =
+                    tri_setup.intersect4(leaf, ray.tmin, tmax, &self.cutouts, ray)
+                {
                     best = Some((t, u, v, HitRef::Triangle { leaf: index, lane }));
                     if any_hit {
                         return best.map(|hit| self.hit(ray, hit));
@@ -540,9 +553,17 @@ impl WatertightRay {
         }
     }
 
-    /// The nearest hit `(t, u, v, lane)` among the leaf's triangles with `t` in `[tmin, tmax]`.
+    /// The nearest hit `(t, u, v, lane)` among the leaf's triangles with `t` in `[tmin, tmax]`
+    /// that `cutouts` lets count for `ray`, asked for the leaf's cut-out lanes alone.
     #[inline]
-    fn intersect4(&self, leaf: &Leaf, tmin: f32, tmax: f32) -> Option<(f32, f32, f32, usize)> {
+    fn intersect4(
+        &self,
+        leaf: &Leaf,
+        tmin: f32,
+        tmax: f32,
+        cutouts: &Cutouts,
+        ray: &Ray,
+    ) -> Option<(f32, f32, f32, usize)> {
         let [kx, ky, kz] = self.k;
         let [sx, sy, sz] = self.shear;
         let rel = |p: &[Vec4; 3]| {
@@ -590,6 +611,9 @@ impl WatertightRay {
             (!outside & det.cmpne(zero) & t.cmpge(Vec4::splat(tmin)) & t.cmple(Vec4::splat(tmax)))
                 .bitmask()
                 & lanes;
+        if hits & leaf.cutouts != 0 {
+            hits = cut_out_lanes(hits, leaf, [v, w, inv_det], cutouts, ray);
+        }
         if hits == 0 {
             return None;
         }
@@ -610,6 +634,28 @@ impl WatertightRay {
             best,
         ))
     }
+}
+
+/// `hits` without the cut-out lanes whose alpha removes the hit (barycentrics `v * inv_det`,
+/// `w * inv_det` from `[v, w, inv_det]`). Out of line: leaves without cut-outs never call it,
+/// and keeping it out keeps their test as it was.
+#[inline(never)]
+fn cut_out_lanes(
+    mut hits: u32,
+    leaf: &Leaf,
+    [v, w, inv_det]: [Vec4; 3],
+    cutouts: &Cutouts,
+    ray: &Ray,
+) -> u32 {
+    let mut cut = hits & leaf.cutouts;
+    while cut != 0 {
+        let l = cut.trailing_zeros() as usize;
+        cut &= cut - 1;
+        if !cutouts.keeps(leaf.triangles[l], v[l] * inv_det[l], w[l] * inv_det[l], ray) {
+            hits &= !(1 << l);
+        }
+    }
+    hits
 }
 
 impl Accel for Bvh {

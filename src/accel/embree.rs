@@ -7,8 +7,14 @@
 //! HIGH costs several times the build for ~13% faster traversal). Speaks Embree 3's and 4's
 //! APIs (`cfg(embree3)` / `cfg(embree4)`, from the version embree-sys found): only the ray
 //! queries differ, in `query`; both versions are asked the same questions.
+//!
+//! Cut-out triangles (`alpha.rs`) form a geometry of their own whose intersection and
+//! occlusion filter functions drop the hits their alpha removes, for single rays and packets
+//! alike; the opaque triangles stay in a geometry without filters, so they cost what they did.
 
-use super::{sphere_roots, Accel, AccelError, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
+use super::{
+    sphere_roots, Accel, AccelError, Cutouts, Geometry, Hit, Primitive, Ray, Sphere, PACKET,
+};
 use embree_sys as sys;
 use glam::Vec3;
 use std::cell::Cell;
@@ -67,19 +73,75 @@ impl SphereTests {
     }
 }
 
+/// What the filter functions of the cut-out geometry read: the geometry's triangles by
+/// Embree's primitive id, and their alphas.
+struct CutoutFilter {
+    triangles: Vec<u32>,
+    cutouts: Cutouts,
+}
+
+/// The intersection and occlusion filter of the cut-out geometry: clears the `valid` lane of
+/// each hit whose alpha removes it, so Embree goes on as if the triangle were not there.
+unsafe extern "C" fn cutout_filter(args: *const sys::RTCFilterFunctionNArguments) {
+    // SAFETY: Embree passes valid arguments for the call: `valid` holds N lanes, `ray` and
+    // `hit` are RTCRayN / RTCHitN of N lanes, laid out as rtcore_ray.h's accessors read them
+    // (structure of arrays, 4-byte fields: origin x, y, z at fields 0-2, direction at 4-6; u, v
+    // at hit fields 3-4, primID at 5); `geometryUserPtr` is the boxed `CutoutFilter` of the
+    // scene, alive as long as the scene; primitive ids index its triangles.
+    unsafe {
+        let args = &*args;
+        let n = args.N as usize;
+        let filter = &*(args.geometryUserPtr as *const CutoutFilter);
+        let valid = std::slice::from_raw_parts_mut(args.valid, n);
+        let ray = std::slice::from_raw_parts(args.ray as *const f32, 7 * n);
+        let hit = std::slice::from_raw_parts(args.hit as *const u32, 6 * n);
+        for (i, lane) in valid.iter_mut().enumerate() {
+            if *lane == 0 {
+                continue;
+            }
+            let field = |k: usize| ray[k * n + i];
+            let query = Ray {
+                origin: Vec3::new(field(0), field(1), field(2)),
+                dir: Vec3::new(field(4), field(5), field(6)),
+                tmin: field(3),
+                tmax: f32::INFINITY,
+            };
+            let (u, v) = (
+                f32::from_bits(hit[3 * n + i]),
+                f32::from_bits(hit[4 * n + i]),
+            );
+            let Some(&triangle) = filter.triangles.get(hit[5 * n + i] as usize) else {
+                continue;
+            };
+            if !filter.cutouts.keeps(triangle, u, v, &query) {
+                *lane = 0;
+            }
+        }
+    }
+}
+
 pub struct EmbreeScene {
     device: sys::RTCDevice,
     scene: sys::RTCScene,
     errors: Box<ErrorLog>,
     /// Buffers Embree reads in place: kept alive and unmoved as long as the scene.
     _vertices: Vec<[f32; 4]>,
+    /// The opaque triangles (all of them in a scene without cut-outs).
     _indices: Vec<[u32; 3]>,
+    /// The cut-out triangles.
+    _cutout_indices: Vec<[u32; 3]>,
     _spheres: Vec<[f32; 4]>,
+    /// The opaque geometry's triangles by primitive id; empty where the ids are the
+    /// triangles' own (a scene without cut-outs).
+    opaque_triangles: Vec<u32>,
+    /// Read by the filter functions through Embree: boxed, so its address is stable.
+    filter: Box<CutoutFilter>,
     /// The spheres Embree holds, to make their hits exact; empty when vmerge tests them.
     spheres: Vec<Sphere>,
     /// The spheres vmerge tests itself ([`SphereTests::Direct`]); empty when Embree holds them.
     direct_spheres: Vec<Sphere>,
     triangle_geometry: u32,
+    cutout_geometry: u32,
     sphere_geometry: u32,
 }
 
@@ -138,6 +200,18 @@ impl EmbreeScene {
             SphereTests::Embree => (geometry.spheres.clone(), Vec::new()),
             SphereTests::Direct => (Vec::new(), geometry.spheres.clone()),
         };
+        let (opaque_triangles, cutout_triangles): (Vec<u32>, Vec<u32>) =
+            if geometry.cutouts.is_empty() {
+                (Vec::new(), Vec::new())
+            } else {
+                (0..geometry.triangles.len() as u32)
+                    .partition(|&i| geometry.cutouts.get(i).is_none())
+            };
+        let indices = |ids: &[u32]| -> Vec<[u32; 3]> {
+            ids.iter()
+                .map(|&i| geometry.triangles[i as usize])
+                .collect()
+        };
         let mut this = EmbreeScene {
             device,
             scene,
@@ -147,7 +221,17 @@ impl EmbreeScene {
                 .iter()
                 .map(|p| [p.x, p.y, p.z, 0.0])
                 .collect(),
-            _indices: geometry.triangles.clone(),
+            _indices: if geometry.cutouts.is_empty() {
+                geometry.triangles.clone()
+            } else {
+                indices(&opaque_triangles)
+            },
+            _cutout_indices: indices(&cutout_triangles),
+            opaque_triangles,
+            filter: Box::new(CutoutFilter {
+                triangles: cutout_triangles,
+                cutouts: geometry.cutouts.clone(),
+            }),
             _spheres: embree_spheres
                 .iter()
                 .map(|s| [s.center.x, s.center.y, s.center.z, s.radius])
@@ -155,6 +239,7 @@ impl EmbreeScene {
             spheres: embree_spheres,
             direct_spheres,
             triangle_geometry: sys::RTC_INVALID_GEOMETRY_ID,
+            cutout_geometry: sys::RTC_INVALID_GEOMETRY_ID,
             sphere_geometry: sys::RTC_INVALID_GEOMETRY_ID,
         };
         this.check()?;
@@ -165,25 +250,25 @@ impl EmbreeScene {
             sys::rtcSetSceneBuildQuality(scene, sys::RTCBuildQuality_RTC_BUILD_QUALITY_MEDIUM)
         };
         if !this._indices.is_empty() {
-            this.triangle_geometry = this.attach(
-                sys::RTCGeometryType_RTC_GEOMETRY_TYPE_TRIANGLE,
-                &[
-                    (
-                        sys::RTCBufferType_RTC_BUFFER_TYPE_VERTEX,
-                        sys::RTCFormat_RTC_FORMAT_FLOAT3,
-                        this._vertices.as_ptr().cast(),
-                        16,
-                        this._vertices.len(),
-                    ),
-                    (
-                        sys::RTCBufferType_RTC_BUFFER_TYPE_INDEX,
-                        sys::RTCFormat_RTC_FORMAT_UINT3,
-                        this._indices.as_ptr().cast(),
-                        12,
-                        this._indices.len(),
-                    ),
-                ],
-            )?;
+            this.triangle_geometry = this.attach_triangles(&this._indices, false)?;
+        }
+        if !this._cutout_indices.is_empty() {
+            // SAFETY: `device` is valid.
+            let supported = unsafe {
+                sys::rtcGetDeviceProperty(
+                    device,
+                    sys::RTCDeviceProperty_RTC_DEVICE_PROPERTY_FILTER_FUNCTION_SUPPORTED,
+                )
+            };
+            if supported == 0 {
+                return Err(AccelError::Embree {
+                    code: 0,
+                    message: "this Embree library was built without filter functions, which \
+                              alpha cut-outs need; use the Rust BVH"
+                        .into(),
+                });
+            }
+            this.cutout_geometry = this.attach_triangles(&this._cutout_indices, true)?;
         }
         if !this._spheres.is_empty() {
             this.sphere_geometry = this.attach(
@@ -195,6 +280,7 @@ impl EmbreeScene {
                     16,
                     this._spheres.len(),
                 )],
+                None,
             )?;
         }
         // SAFETY: `scene` is valid and every attached buffer is alive in `this`.
@@ -203,8 +289,35 @@ impl EmbreeScene {
         Ok(this)
     }
 
-    /// Creates a geometry over shared buffers `(type, format, pointer, stride, count)`,
-    /// commits and attaches it; returns its id.
+    /// A triangle geometry over the shared vertices and `indices` (a buffer of `self`), with
+    /// the cut-out filter functions when `cut_out`; returns its id.
+    fn attach_triangles(&self, indices: &[[u32; 3]], cut_out: bool) -> Result<u32, AccelError> {
+        let filter = cut_out.then_some(&*self.filter);
+        self.attach(
+            sys::RTCGeometryType_RTC_GEOMETRY_TYPE_TRIANGLE,
+            &[
+                (
+                    sys::RTCBufferType_RTC_BUFFER_TYPE_VERTEX,
+                    sys::RTCFormat_RTC_FORMAT_FLOAT3,
+                    self._vertices.as_ptr().cast(),
+                    16,
+                    self._vertices.len(),
+                ),
+                (
+                    sys::RTCBufferType_RTC_BUFFER_TYPE_INDEX,
+                    sys::RTCFormat_RTC_FORMAT_UINT3,
+                    indices.as_ptr().cast(),
+                    12,
+                    indices.len(),
+                ),
+            ],
+            filter,
+        )
+    }
+
+    /// Creates a geometry over shared buffers `(type, format, pointer, stride, count)`, with
+    /// the cut-out filter functions reading `filter` where given, commits and attaches it;
+    /// returns its id.
     fn attach(
         &self,
         kind: sys::RTCGeometryType,
@@ -215,10 +328,20 @@ impl EmbreeScene {
             usize,
             usize,
         )],
+        filter: Option<&CutoutFilter>,
     ) -> Result<u32, AccelError> {
         // SAFETY: `device` is valid.
         let geometry = unsafe { sys::rtcNewGeometry(self.device, kind) };
         self.check()?;
+        if let Some(filter) = filter {
+            // SAFETY: `geometry` is valid; `filter` is boxed in `self` and outlives the scene,
+            // and the filter functions only read it.
+            unsafe {
+                sys::rtcSetGeometryUserData(geometry, filter as *const CutoutFilter as *mut c_void);
+                sys::rtcSetGeometryIntersectFilterFunction(geometry, Some(cutout_filter));
+                sys::rtcSetGeometryOccludedFilterFunction(geometry, Some(cutout_filter));
+            }
+        }
         for &(buffer, format, pointer, stride, count) in buffers {
             // SAFETY: `pointer` points to `count` items of `stride` bytes owned by `self`
             // and never moved or freed before the scene; vertex buffers are 16-byte items, so
@@ -269,11 +392,24 @@ impl EmbreeScene {
             ng,
         } = h;
         if geom_id == self.triangle_geometry {
+            let triangle = if self.opaque_triangles.is_empty() {
+                prim_id
+            } else {
+                self.opaque_triangles[prim_id as usize]
+            };
             // Embree's Ng (same winding as the Hit contract) rather than one recomputed from
             // the vertices: reading those again is a cache miss on large meshes.
             Some(Hit {
                 t,
-                primitive: Primitive::Triangle(prim_id),
+                primitive: Primitive::Triangle(triangle),
+                u,
+                v,
+                ng,
+            })
+        } else if geom_id == self.cutout_geometry {
+            Some(Hit {
+                t,
+                primitive: Primitive::Triangle(self.filter.triangles[prim_id as usize]),
                 u,
                 v,
                 ng,
@@ -373,7 +509,8 @@ fn empty_hit8() -> sys::RTCHit8 {
 }
 
 /// The ray queries in the API of the Embree found at build time. Both versions are asked for
-/// the same traversal: incoherent rays, no filter functions, no instancing.
+/// the same traversal: incoherent rays, the geometries' own filter functions (cut-outs) and
+/// none of the query's, no instancing.
 #[cfg(embree3)]
 mod query {
     use super::{sys, ValidMask};
@@ -431,7 +568,8 @@ mod query {
 }
 
 /// The ray queries in the API of the Embree found at build time. Both versions are asked for
-/// the same traversal: incoherent rays, no filter functions, no instancing.
+/// the same traversal: incoherent rays, the geometries' own filter functions (cut-outs) and
+/// none of the query's, no instancing.
 #[cfg(embree4)]
 mod query {
     use super::{sys, ValidMask};
@@ -440,7 +578,8 @@ mod query {
     /// The features vmerge's scenes have. The mask is for SYCL, which compiles traversal for the
     /// features named only; naming exactly these keeps it right there too.
     const FEATURES: sys::RTCFeatureFlags = sys::RTCFeatureFlags_RTC_FEATURE_FLAG_TRIANGLE
-        | sys::RTCFeatureFlags_RTC_FEATURE_FLAG_SPHERE_POINT;
+        | sys::RTCFeatureFlags_RTC_FEATURE_FLAG_SPHERE_POINT
+        | sys::RTCFeatureFlags_RTC_FEATURE_FLAG_FILTER_FUNCTION_IN_GEOMETRY;
 
     // `rtcInitIntersectArguments` / `rtcInitOccludedArguments`, inline header functions,
     // re-implemented with the feature mask narrowed. Their null ray query context makes Embree

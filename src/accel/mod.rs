@@ -3,11 +3,14 @@
 //!
 //! Geometry is one flat triangle soup plus a list of analytic spheres; a [`Hit`] names its
 //! [`Primitive`] by index into those lists, so the scene maps a hit to its material in O(1).
+//! Triangles may be cut out by an alpha (`alpha.rs`): both backends skip the hits it removes.
 
 use crate::options::OptionName;
+pub use alpha::{Alpha, Cutouts, TriangleAlpha};
 use glam::Vec3;
 use thiserror::Error;
 
+pub mod alpha;
 pub mod bvh;
 #[cfg(feature = "embree")]
 pub mod embree;
@@ -123,6 +126,8 @@ pub struct Geometry {
     pub positions: Vec<Vec3>,
     pub triangles: Vec<[u32; 3]>,
     pub spheres: Vec<Sphere>,
+    /// The triangles an alpha cuts out (none by default).
+    pub cutouts: Cutouts,
 }
 
 impl Geometry {
@@ -201,7 +206,8 @@ pub const PACKET: usize = 8;
 /// Ray queries against a committed scene. Implementations are immutable after building and
 /// shared by all render threads.
 pub trait Accel: Send + Sync {
-    /// Closest hit with `t` in `[ray.tmin, ray.tmax]`.
+    /// Closest hit with `t` in `[ray.tmin, ray.tmax]`; hits the geometry's cut-outs remove
+    /// do not count, here and in every query below.
     fn intersect(&self, ray: &Ray) -> Option<Hit>;
 
     /// Whether anything is hit with `t` in `[ray.tmin, ray.tmax]`.

@@ -12,7 +12,7 @@
 //! emitting that point and direction, per area times solid angle). Light selection
 //! probabilities are not included; [`Lights`] picks lights in proportion to their power.
 
-use crate::accel::{Geometry, Ray};
+use crate::accel::{Geometry, Ray, TriangleAlpha};
 use crate::bsdf::Material;
 use crate::color::Rgb;
 use crate::frame::Frame;
@@ -43,13 +43,14 @@ const NO_LIGHT: u32 = u32::MAX;
 #[derive(Clone, Debug, PartialEq)]
 pub enum Light {
     /// An emissive triangle, radiating `radiance` on the side of its normal, or on both
-    /// sides when `two_sided`.
+    /// sides when `two_sided`, where its `alpha`, if any, does not cut it out.
     Triangle {
         vertices: [Vec3; 3],
         normal: Vec3,
         area: f32,
         radiance: Rgb,
         two_sided: bool,
+        alpha: Option<Arc<TriangleAlpha>>,
     },
     /// An emissive sphere, radiating outwards (and inwards too when `two_sided`).
     Sphere {
@@ -220,10 +221,17 @@ impl Light {
                 area,
                 radiance,
                 two_sided,
+                ref alpha,
             } => {
                 let (b1, b2) = sampling::uniform_triangle(u);
                 let p = (1.0 - b1 - b2) * vertices[0] + b1 * vertices[1] + b2 * vertices[2];
-                Some(AreaPoint {
+                // A ray meets a cut-out point with probability alpha (clamped, `accel::alpha`),
+                // so that is the share of the radiance a sampled point carries.
+                let radiance = match alpha {
+                    Some(a) => radiance * a.value(b1, b2).clamp(0.0, 1.0),
+                    None => radiance,
+                };
+                (!radiance.is_black()).then_some(AreaPoint {
                     position: p,
                     normal,
                     pdf_a: 1.0 / area,
@@ -586,6 +594,7 @@ impl Lights {
                 area,
                 radiance: emission,
                 two_sided: materials[m as usize].two_sided,
+                alpha: geometry.cutouts.get(i as u32).cloned().map(Arc::new),
             });
         }
         let mut sphere_lights = vec![NO_LIGHT; geometry.spheres.len()];
@@ -754,6 +763,7 @@ mod tests {
             area: 0.5,
             radiance: Rgb::splat(2.0),
             two_sided,
+            alpha: None,
         }
     }
 

@@ -3,16 +3,17 @@
 //! Everything is validated before anything is built: each problem is one [`SceneError`] naming
 //! the file and the entry. OBJ `vn` normals become shading normals (unless turned off per mesh
 //! or for the whole load), `vt` texture coordinates; MTL `map_Kd` / `map_Ks` and the tables'
-//! `texture` / `ks_texture` name image textures. Materials, images, the scene hash and the
+//! `texture` / `ks_texture` name image textures; a mesh's `alpha` (a number or an image) cuts it
+//! out. Materials, images, the scene hash and the
 //! warnings go through the [`Builder`] the pbrt importer uses too.
 
 use super::builder::{Builder, Contents, MaterialDesc, Origin};
-use super::wavefront;
+use super::{alpha, wavefront};
 use super::{
     CameraDesc, FovAxis, MaterialTextures, MeshShading, Mix, RenderDefaults, Scene, SceneError,
     SceneParts, Warning, MAX_COORDINATE,
 };
-use crate::accel::{AccelKind, Geometry, Sphere};
+use crate::accel::{AccelKind, Alpha, Geometry, Sphere};
 use crate::bsdf::{BsdfError, Material, MaterialKind, ParamKind, ParamValue, Params};
 use crate::color::Rgb;
 use crate::files::{self, Kind};
@@ -101,6 +102,15 @@ struct MeshTable {
     material: Option<String>,
     #[serde(default = "yes")]
     shading_normals: bool,
+    alpha: Option<AlphaEntry>,
+}
+
+/// A mesh's alpha: a constant, or an image read at the mesh's uvs.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum AlphaEntry {
+    Constant(f32),
+    Image(PathBuf),
 }
 
 fn yes() -> bool {
@@ -853,8 +863,38 @@ impl Loader {
             indices.push(self.mtl_material(&obj_path, &mtl_file, m)?);
         }
         let first_vertex = self.geometry.positions.len();
+        let first_triangle = self.geometry.triangles.len();
         self.mesh_models(&entry, &obj_path, mesh, &obj.models, &indices)?;
-        self.check_extent(&entry, &obj_path, first_vertex)
+        self.check_extent(&entry, &obj_path, first_vertex)?;
+        if let Some(a) = self.alpha(&format!("{entry}.alpha"), &mesh.alpha)? {
+            let triangles = first_triangle..self.geometry.triangles.len();
+            alpha::cut_out(&mut self.geometry, &self.shading, triangles, &a);
+        }
+        Ok(())
+    }
+
+    /// A mesh's alpha: a finite constant, or an image relative to the scene file (with
+    /// `--lenient`, an image that cannot be read leaves the mesh opaque with a warning).
+    fn alpha(&mut self, entry: &str, a: &Option<AlphaEntry>) -> Result<Option<Alpha>, SceneError> {
+        match a {
+            None => Ok(None),
+            Some(AlphaEntry::Constant(a)) if a.is_finite() => Ok(Some(Alpha::Constant(*a))),
+            Some(AlphaEntry::Constant(a)) => {
+                Err(self.invalid(entry, format!("{a} is not a finite number")))
+            }
+            Some(AlphaEntry::Image(name)) => match alpha::read_image(&self.dir.join(name)) {
+                Ok((image, bytes)) => {
+                    self.builder.input(&self.dir.join(name), &bytes);
+                    Ok(Some(Alpha::Texture(std::sync::Arc::new(image))))
+                }
+                Err(message) if self.builder.lenient() => {
+                    let w = Warning::entry(&self.path, entry, format!("{message}; left opaque"));
+                    self.builder.warn(w);
+                    Ok(None)
+                }
+                Err(message) => Err(self.invalid(entry, message)),
+            },
+        }
     }
 
     /// Vertices (after the transform) must lie where f32 positions stay precise enough.

@@ -11,6 +11,7 @@ use glam::{Vec2, Vec3};
 use std::path::PathBuf;
 use std::sync::Arc;
 
+mod alpha;
 mod builder;
 mod camera;
 mod error;

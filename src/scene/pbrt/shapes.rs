@@ -6,13 +6,14 @@ use super::import::{Importer, Loc};
 use super::parser::{Directive, ParamList, ParamType, ParseError};
 use super::ply::{self, PlyMesh};
 use super::quadrics;
+use super::textures::FloatTex;
 use crate::accel::{Geometry, Sphere};
 use crate::bsdf::Params;
 use crate::color::Rgb;
 use crate::files::{self, snippet, FileError, Kind};
 use crate::options::OptionName;
 use crate::scene::builder::{MaterialDesc, Origin};
-use crate::scene::{MeshShading, SceneError, MAX_COORDINATE};
+use crate::scene::{alpha, MeshShading, SceneError, MAX_COORDINATE};
 use glam::{DMat3, DMat4, DVec3, Vec2, Vec3};
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
@@ -46,6 +47,8 @@ pub(super) struct ShapeRecord {
     pub(super) reverse_orientation: bool,
     pub(super) material: u32,
     pub(super) loc: Loc,
+    /// Its alpha cut-out, if any.
+    pub(super) alpha: Option<FloatTex>,
 }
 
 /// The shapes in world space.
@@ -151,9 +154,13 @@ impl Importer {
                 ))
             }
         };
-        if p.params.iter().any(|q| q.name == "alpha") {
-            p.mark_used(&["alpha"]);
-            self.warn(loc, "Shape: alpha (cut-outs) ignored");
+        let mut alpha = self.shape_alpha(loc, p)?;
+        if alpha.is_some() && matches!(kind, ShapeKind::Sphere { .. }) {
+            self.warn(
+                loc,
+                "Shape sphere: alpha (cut-outs) ignored; rendered opaque",
+            );
+            alpha = None;
         }
         let base = self.current_material()?;
         if self.interfaces.contains(&base) {
@@ -171,6 +178,7 @@ impl Importer {
             reverse_orientation: self.state.reverse_orientation,
             material,
             loc,
+            alpha,
         };
         match &mut self.current_object {
             Some((_, shapes)) => shapes.push(record),
@@ -269,6 +277,7 @@ impl Importer {
         let mut sphere_materials = Vec::new();
         let mut shading = MeshShading::default();
         let mut dropped = 0usize;
+        let mut alpha_images = HashMap::new();
         let shapes = std::mem::take(&mut self.shapes);
         for s in &shapes {
             let mesh = match &s.kind {
@@ -320,6 +329,7 @@ impl Importer {
                 }
             };
             let first = geometry.positions.len();
+            let first_triangle = geometry.triangles.len();
             dropped += place_mesh(
                 &mesh,
                 s,
@@ -327,6 +337,12 @@ impl Importer {
                 &mut triangle_materials,
                 &mut shading,
             );
+            if let Some(tex) = &s.alpha {
+                if let Some(a) = self.cutout_alpha(tex, &mut alpha_images)? {
+                    let triangles = first_triangle..geometry.triangles.len();
+                    alpha::cut_out(&mut geometry, &shading, triangles, &a);
+                }
+            }
             if let Some(p) = geometry.positions[first..]
                 .iter()
                 .find(|p| !p.is_finite() || p.abs().max_element() > MAX_COORDINATE)

@@ -4,12 +4,16 @@
 use super::import::{Importer, Loc};
 use super::material::named_spectrum;
 use super::parser::{Directive, ParamList, Spectrum, TexOr};
+use crate::accel::Alpha;
 use crate::color::Rgb;
 use crate::files::snippet;
 use crate::options::OptionName;
+use crate::scene::alpha;
 use crate::scene::{MaterialTextures, SceneError};
+use crate::texture::Texture;
 use std::collections::HashMap;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// A spectrum-valued texture, as far as vmerge follows it.
 #[derive(Clone, Debug)]
@@ -28,7 +32,8 @@ pub(super) enum Tex {
 #[derive(Clone, Debug)]
 pub(super) enum FloatTex {
     Constant(f32),
-    Image,
+    /// An image map (followed for alpha cut-outs only), or [`Tex::Missing`].
+    Image(Tex),
 }
 
 impl Importer {
@@ -155,7 +160,7 @@ impl Importer {
             self.textures.insert(name.to_string(), tex);
         } else {
             self.float_textures
-                .insert(name.to_string(), FloatTex::Image);
+                .insert(name.to_string(), FloatTex::Image(tex));
         }
         Ok(())
     }
@@ -274,7 +279,7 @@ impl Importer {
             Some((TexOr::Value(v), _)) => Ok(Some(v)),
             Some((TexOr::Texture(t), line)) => match self.float_textures.get(&t) {
                 Some(FloatTex::Constant(v)) => Ok(Some(*v)),
-                Some(FloatTex::Image) => {
+                Some(FloatTex::Image(_)) => {
                     self.warn(
                         Loc { line, ..loc },
                         format!(
@@ -295,6 +300,60 @@ impl Importer {
                 )),
             },
         }
+    }
+
+    /// A shape's `alpha`: a constant below 1 or a float texture (pbrt-v4 ignores constants of
+    /// 1 and more); `None` for an opaque shape.
+    pub(super) fn shape_alpha(
+        &mut self,
+        loc: Loc,
+        params: &ParamList,
+    ) -> Result<Option<FloatTex>, SceneError> {
+        match params.float_texture("alpha").map_err(self.pe(loc.file))? {
+            None => Ok(None),
+            Some((TexOr::Value(a), line)) if !a.is_finite() => Err(self.at(
+                Loc { line, ..loc },
+                format!("Shape: alpha {a} is not a finite number"),
+            )),
+            Some((TexOr::Value(a), _)) => Ok((a < 1.0).then_some(FloatTex::Constant(a))),
+            Some((TexOr::Texture(t), line)) => match self.float_textures.get(&t) {
+                Some(tex) => Ok(Some(tex.clone())),
+                None => Err(self.at(
+                    Loc { line, ..loc },
+                    format!(
+                        "Shape: alpha: no float texture named '{t}'",
+                        t = snippet(&t)
+                    ),
+                )),
+            },
+        }
+    }
+
+    /// The alpha of a shape as the ray queries take it, its images decoded once each into
+    /// `images` (scaled by the texture's `scale`); `None` where it is opaque or its image is
+    /// missing (already warned of).
+    pub(super) fn cutout_alpha(
+        &mut self,
+        tex: &FloatTex,
+        images: &mut HashMap<(PathBuf, u32), Arc<Texture>>,
+    ) -> Result<Option<Alpha>, SceneError> {
+        let (path, scale, loc) = match tex {
+            FloatTex::Constant(a) => return Ok(Some(Alpha::Constant(*a))),
+            FloatTex::Image(Tex::Image { path, scale, loc }) => (path, scale.r, *loc),
+            FloatTex::Image(_) => return Ok(None),
+        };
+        let key = (path.clone(), scale.to_bits());
+        if let Some(image) = images.get(&key) {
+            return Ok(Some(Alpha::Texture(Arc::clone(image))));
+        }
+        let (mut image, bytes) = alpha::read_image(path).map_err(|e| self.at(loc, e))?;
+        self.builder.input(path, &bytes);
+        for t in &mut image.texels {
+            *t *= scale;
+        }
+        let image = Arc::new(image);
+        images.insert(key, Arc::clone(&image));
+        Ok(Some(Alpha::Texture(image)))
     }
 
     /// Decodes the materials' images (in parallel, each file once) and gives each material its
