@@ -122,11 +122,7 @@ impl Bxdf for Conductor {
     }
 
     fn albedo(&self) -> Albedo {
-        Albedo {
-            kd: Rgb::BLACK,
-            ks: Rgb::BLACK,
-            roughness: None,
-        }
+        Albedo::NONE
     }
 
     fn with_albedo(&self, albedo: Albedo) -> Self {

@@ -74,11 +74,7 @@ impl Bxdf for Glass {
     }
 
     fn albedo(&self) -> Albedo {
-        Albedo {
-            kd: Rgb::BLACK,
-            ks: Rgb::BLACK,
-            roughness: None,
-        }
+        Albedo::NONE
     }
 
     fn with_albedo(&self, _: Albedo) -> Self {

@@ -141,6 +141,13 @@ pub struct Albedo {
 }
 
 impl Albedo {
+    /// No colour a texture could replace (glass and the conductors' Fresnel colours).
+    pub const NONE: Albedo = Albedo {
+        kd: Rgb::BLACK,
+        ks: Rgb::BLACK,
+        roughness: None,
+    };
+
     /// The constant colours of `kind`.
     pub fn of(kind: &MaterialKind) -> Self {
         kind.albedo()

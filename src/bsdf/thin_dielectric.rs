@@ -52,11 +52,7 @@ impl Bxdf for ThinDielectric {
     }
 
     fn albedo(&self) -> Albedo {
-        Albedo {
-            kd: Rgb::BLACK,
-            ks: Rgb::BLACK,
-            roughness: None,
-        }
+        Albedo::NONE
     }
 
     fn with_albedo(&self, _: Albedo) -> Self {
