@@ -5,9 +5,10 @@
 mod common;
 
 use common::browser::headless_chromium;
+use common::programs::{have, parallel};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::SystemTime;
 use vmerge::tools::{self, batch::Plan};
 
@@ -17,22 +18,6 @@ fn vmerge() -> Command {
 
 fn scene(name: &str) -> String {
     format!("{}/scenes/{name}/scene.toml", env!("CARGO_MANIFEST_DIR"))
-}
-
-/// Whether `program` runs here; tests that need it say so and stop when it does not.
-fn have(program: &str) -> bool {
-    let found = Command::new(program)
-        .arg("--version")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !found {
-        eprintln!(
-            "skipped: {program} is not installed (`scripts/setup-debian --tests` installs it)"
-        );
-    }
-    found
 }
 
 /// Runs `vmerge ARGS` and returns stdout, asserting success.
@@ -104,32 +89,6 @@ fn run_with_parallel(plan: &Path, dir: &Path) -> usize {
         parallel(&jobs, dir);
     }
     panic!("--jobs still prints commands after 5 rounds");
-}
-
-/// Runs the command lines `jobs` through `parallel -j 2` in `dir`, stopping at the first that
-/// fails.
-fn parallel(jobs: &str, dir: &Path) {
-    let mut child = Command::new("parallel")
-        .args(["--will-cite", "-j", "2", "--halt", "now,fail=1"])
-        .current_dir(dir)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    use std::io::Write;
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(jobs.as_bytes())
-        .unwrap();
-    let out = child.wait_with_output().unwrap();
-    assert!(
-        out.status.success(),
-        "parallel: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
 }
 
 fn modification_times(dir: &Path) -> BTreeMap<PathBuf, SystemTime> {

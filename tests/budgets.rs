@@ -3,8 +3,11 @@
 //! the batch report shows each cell's cost and warns when comparable cells got unequal shares
 //! of the machine.
 
+mod common;
+
+use common::programs::{have, parallel};
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::time::Duration;
 use vmerge::film::exr;
 use vmerge::options::{RenderOptions, Technique};
@@ -136,22 +139,6 @@ fn time_budgets_start_no_iteration_predicted_to_end_past_them() {
     }
 }
 
-/// Whether GNU parallel runs here; the test that needs it says so and stops when it does not.
-fn have_parallel() -> bool {
-    let found = Command::new("parallel")
-        .arg("--version")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .status()
-        .is_ok_and(|s| s.success());
-    if !found {
-        eprintln!(
-            "skipped: parallel is not installed (`scripts/setup-debian --tests` installs it)"
-        );
-    }
-    found
-}
-
 /// `batch --jobs` piped to `parallel -j 2` until it prints nothing.
 fn run_with_parallel(plan: &Path, dir: &Path) {
     for _ in 0..4 {
@@ -164,27 +151,7 @@ fn run_with_parallel(plan: &Path, dir: &Path) {
         if jobs.trim().is_empty() {
             return;
         }
-        let mut child = Command::new("parallel")
-            .args(["--will-cite", "-j", "2", "--halt", "now,fail=1"])
-            .current_dir(dir)
-            .stdin(Stdio::piped())
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped())
-            .spawn()
-            .unwrap();
-        use std::io::Write;
-        child
-            .stdin
-            .take()
-            .unwrap()
-            .write_all(jobs.as_bytes())
-            .unwrap();
-        let out = child.wait_with_output().unwrap();
-        assert!(
-            out.status.success(),
-            "parallel: {}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        parallel(&jobs, dir);
     }
     panic!("--jobs still prints commands after 4 rounds");
 }
@@ -227,7 +194,7 @@ fn close(a: f64, b: f64) -> bool {
 /// errors and their efficiency, mean and spread.
 #[test]
 fn cells_under_one_cpu_budget_run_two_at_a_time_reach_equal_iterations() {
-    if !have_parallel() {
+    if !have("parallel") {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
