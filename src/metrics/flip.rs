@@ -378,11 +378,20 @@ fn colour_error(
     filters: &Filters,
 ) -> Vec<f32> {
     let radius = filters.ycx.len() / 2;
+    // (Y, Cx, Cz, Cz) times the tap's weights: Y and Cx by their Gaussians, Cz by its two.
+    let weigh = |tap: usize, v: V4| {
+        let (ycx, cz) = (filters.ycx[tap], filters.cz[tap]);
+        V4([
+            ycx[0] * v.0[0],
+            ycx[1] * v.0[1],
+            cz[0] * v.0[2],
+            cz[1] * v.0[3],
+        ])
+    };
     // Per image: filtered (Y, Cx, Cz first Gaussian, Cz second Gaussian).
     let first = |image: &[[f32; 3]]| {
         filter_x(image, width, radius, |tap, c: [f32; 3]| {
-            let (ycx, cz) = (filters.ycx[tap], filters.cz[tap]);
-            V4([ycx[0] * c[0], ycx[1] * c[1], cz[0] * c[2], cz[1] * c[2]])
+            weigh(tap, V4([c[0], c[1], c[2], c[2]]))
         })
     };
     let (reference, test) = (first(reference), first(test));
@@ -393,15 +402,6 @@ fn colour_error(
     )
     .powf(QC);
     let pc_max = PC * c_max;
-    let weigh = |tap: usize, v: V4| {
-        let (ycx, cz) = (filters.ycx[tap], filters.cz[tap]);
-        V4([
-            ycx[0] * v.0[0],
-            ycx[1] * v.0[1],
-            cz[0] * v.0[2],
-            cz[1] * v.0[3],
-        ])
-    };
     let to_lab = |v: V4| {
         let rgb = xyz_to_linear_rgb(ycxcz_to_xyz([v.0[0], v.0[1], v.0[2] + v.0[3]]));
         hunt(xyz_to_lab(linear_rgb_to_xyz(
