@@ -405,8 +405,9 @@ fn configs() -> Vec<Config> {
             3.0,
             10.0,
         ),
-        // Trowbridge-Reitz lobes have no closed-form bound: their trials sample the whole
-        // BSDF, refracted ones crossing the surface from an origin offset to their own side.
+        // Trowbridge-Reitz lobes: bounded by a rectangle of the visible-normal sampler's plane
+        // (or sampled whole where that holds most of the lobe), refracted trials crossing the
+        // surface from an origin offset to their own side.
         cfg(
             "rough conductor 0.3",
             conductor(0.3, 0.3),
@@ -437,6 +438,70 @@ fn configs() -> Vec<Config> {
             50.0,
             (50.0, 180.0),
             10.0,
+            0.0,
+        ),
+        cfg(
+            "rough conductor 0.02",
+            conductor(0.02, 0.02),
+            40.0,
+            (40.0, 180.0),
+            50.0,
+            0.0,
+        ),
+        cfg(
+            "rough conductor 0.05, off peak",
+            conductor(0.05, 0.05),
+            60.0,
+            (52.0, 172.0),
+            30.0,
+            20.0,
+        ),
+        cfg(
+            "rough conductor 0.1, grazing",
+            conductor(0.1, 0.1),
+            80.0,
+            (78.0, 180.0),
+            20.0,
+            40.0,
+        ),
+        cfg(
+            "rough conductor 0.2, d = 2r",
+            conductor(0.2, 0.2),
+            30.0,
+            (30.0, 180.0),
+            2.0,
+            0.0,
+        ),
+        cfg(
+            "anisotropic conductor 0.05 x 0.3",
+            conductor(0.05, 0.3),
+            45.0,
+            (45.0, 185.0),
+            20.0,
+            10.0,
+        ),
+        cfg(
+            "rough dielectric 0.05, refracted",
+            rough_dielectric(0.05),
+            30.0,
+            (160.5, 180.0),
+            30.0,
+            0.0,
+        ),
+        cfg(
+            "rough dielectric 0.1, leaving",
+            rough_dielectric(0.1),
+            150.0,
+            (48.6, 180.0),
+            20.0,
+            10.0,
+        ),
+        cfg(
+            "rough dielectric 0.1, inside",
+            rough_dielectric(0.1),
+            150.0,
+            (150.0, 180.0),
+            20.0,
             0.0,
         ),
         occluded(

@@ -5,9 +5,12 @@
 //! D_wo(wm) / (4 |wo . wm|).
 
 use super::fresnel;
-use super::microfacet::{reflect, Roughness, TrowbridgeReitz};
+use super::microfacet::{Roughness, Scatter, TrowbridgeReitz};
 use super::params::{color, BsdfError, EnergyExcess, ParamReader, ParamSpec, Params};
-use super::{reflect_local, Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobes, TransportMode};
+use super::{
+    reflect_local, Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobes, MicrofacetLobe,
+    TransportMode,
+};
 use crate::color::Rgb;
 use crate::frame::Frame;
 use glam::Vec3;
@@ -162,7 +165,7 @@ impl Bxdf for Conductor {
             return None;
         }
         let wm = m.sample_wm(wo, [u[1], u[2]]);
-        let wi = reflect(wo, wm);
+        let wi = Scatter::Reflect.apply(wo, wm, u[0])?;
         self.eval_rough(&m, wo, wi).sample_at(wi)
     }
 
@@ -170,13 +173,15 @@ impl Bxdf for Conductor {
         self.fresnel(1.0)
     }
 
-    /// Visible-normal sampling has no closed-form bound on a cone of directions.
     #[inline]
     fn lobes(&self, _: Vec3, _: &Frame) -> Lobes {
         if self.is_delta() {
             Lobes::NONE
         } else {
-            Lobes::UNBOUNDED
+            Lobes::microfacet(MicrofacetLobe {
+                distribution: self.roughness.distribution(),
+                scatter: Scatter::Reflect,
+            })
         }
     }
 }

@@ -11,9 +11,11 @@
 //! D_wo(wm) F / (4 |wo . wm|) and D_wo(wm) (1 - F) |wi . wm| / (wi . wm + wo . wm / eta')^2.
 
 use super::fresnel;
-use super::microfacet::{reflect, Roughness, TrowbridgeReitz};
+use super::microfacet::{Roughness, Scatter, TrowbridgeReitz};
 use super::params::{number, BsdfError, EnergyExcess, ParamRange, ParamReader, ParamSpec, Params};
-use super::{Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Glass, Lobes, TransportMode};
+use super::{
+    Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Glass, Lobes, MicrofacetLobe, TransportMode,
+};
 use crate::color::Rgb;
 use crate::frame::Frame;
 use glam::Vec3;
@@ -179,20 +181,7 @@ impl Bxdf for Dielectric {
             return None;
         }
         let wm = m.sample_wm(wo, [u[1], u[2]]);
-        let r = fresnel::dielectric(wo.dot(wm), self.eta);
-        let wi = if u[0] < r {
-            let wi = reflect(wo, wm);
-            if wi.z * wo.z <= 0.0 {
-                return None;
-            }
-            wi
-        } else {
-            let (wi, _) = fresnel::refract(wo, wm, self.eta)?;
-            if wi.z * wo.z >= 0.0 {
-                return None;
-            }
-            wi
-        };
+        let wi = Scatter::Dielectric { eta: self.eta }.apply(wo, wm, u[0])?;
         self.eval_rough(&m, wo, wi, mode).sample_at(wi)
     }
 
@@ -200,13 +189,15 @@ impl Bxdf for Dielectric {
         Rgb::WHITE
     }
 
-    /// Visible-normal sampling through a refraction has no closed-form bound.
     #[inline]
     fn lobes(&self, _: Vec3, _: &Frame) -> Lobes {
         if self.is_delta() {
             Lobes::NONE
         } else {
-            Lobes::UNBOUNDED
+            Lobes::microfacet(MicrofacetLobe {
+                distribution: self.roughness.distribution(),
+                scatter: Scatter::Dielectric { eta: self.eta },
+            })
         }
     }
 }

@@ -3,8 +3,9 @@
 //! distribution of visible normals with Heitz's (2018) sampler. Everything is in the local
 //! shading frame, z up.
 
+use super::fresnel;
 use super::params::{number, BsdfError, ParamRange, ParamReader, ParamSpec, Params};
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use std::f32::consts::PI;
 
 /// Below this alpha on both axes a surface is a delta (pbrt-v4's threshold): the lobe is far
@@ -93,7 +94,29 @@ impl TrowbridgeReitz {
     /// sampler: stretch to the unit-roughness configuration, sample the projected hemisphere,
     /// unstretch.
     pub fn sample_wm(&self, w: Vec3, u: [f32; 2]) -> Vec3 {
-        let mut wh = Vec3::new(self.alpha_x * w.x, self.alpha_y * w.y, w.z).normalize();
+        let normals = VisibleNormals::new(self, w);
+        normals.lift(normals.point(u))
+    }
+}
+
+/// Heitz's (2018) sampler of the normals visible from one direction, in its two steps: a
+/// point uniform on the hemisphere of unit roughness projected along the stretched direction
+/// `wh` (a half disk and half an ellipse), and the normal that point lifts to. Uniform density
+/// on that region is what makes the normals follow D_w; a sampler confined to part of them
+/// (UPG's tentative rays) draws its points uniformly from a smaller region instead.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct VisibleNormals {
+    alpha_x: f32,
+    alpha_y: f32,
+    wh: Vec3,
+    t1: Vec3,
+    t2: Vec3,
+}
+
+impl VisibleNormals {
+    /// The normals of `m` visible from `w` (flipped up when below the surface).
+    pub fn new(m: &TrowbridgeReitz, w: Vec3) -> Self {
+        let mut wh = Vec3::new(m.alpha_x * w.x, m.alpha_y * w.y, w.z).normalize();
         if wh.z < 0.0 {
             wh = -wh;
         }
@@ -102,18 +125,114 @@ impl TrowbridgeReitz {
         } else {
             Vec3::X
         };
-        let t2 = wh.cross(t1);
-        // A uniform point on the unit disk, its lower half squeezed onto the visible part.
+        VisibleNormals {
+            alpha_x: m.alpha_x,
+            alpha_y: m.alpha_y,
+            wh,
+            t1,
+            t2: wh.cross(t1),
+        }
+    }
+
+    /// The sampler's point for `u`: a uniform point on the unit disk, its lower half squeezed
+    /// onto the visible part.
+    pub fn point(&self, u: [f32; 2]) -> [f32; 2] {
         let r = u[0].sqrt();
         let phi = 2.0 * PI * u[1];
         let (sin_phi, cos_phi) = phi.sin_cos();
         let px = r * cos_phi;
         let h = (1.0 - px * px).max(0.0).sqrt();
-        let s = 0.5 * (1.0 + wh.z);
-        let py = (1.0 - s) * h + s * (r * sin_phi);
+        let s = 0.5 * (1.0 + self.wh.z);
+        [px, (1.0 - s) * h + s * (r * sin_phi)]
+    }
+
+    /// Whether `p` lies in the region [`Self::point`] covers: the unit disk above
+    /// y = -wh.z sqrt(1 - x^2).
+    pub fn contains(&self, p: [f32; 2]) -> bool {
+        let rest = 1.0 - p[0] * p[0];
+        rest >= 0.0 && p[1] * p[1] <= rest && p[1] >= -self.wh.z * rest.sqrt()
+    }
+
+    /// The area of that region, pi (1 + wh.z) / 2: the points' density is its inverse.
+    pub fn area(&self) -> f64 {
+        std::f64::consts::FRAC_PI_2 * (1.0 + self.wh.z as f64)
+    }
+
+    /// The microfacet normal of the point `p`.
+    pub fn lift(&self, p: [f32; 2]) -> Vec3 {
+        let [px, py] = p;
         let pz = (1.0 - px * px - py * py).max(0.0).sqrt();
-        let nh = t1 * px + t2 * py + wh * pz;
+        let nh = self.t1 * px + self.t2 * py + self.wh * pz;
         Vec3::new(self.alpha_x * nh.x, self.alpha_y * nh.y, nh.z.max(1e-6)).normalize()
+    }
+
+    /// The point a normal `wm` lifts from (the inverse of [`Self::lift`]), in f64, with the
+    /// stretched normal it passes through.
+    pub fn project(&self, wm: DVec3) -> ([f64; 2], DVec3) {
+        let nh = DVec3::new(
+            wm.x / self.alpha_x as f64,
+            wm.y / self.alpha_y as f64,
+            wm.z,
+        )
+        .normalize();
+        (
+            [nh.dot(self.t1.as_dvec3()), nh.dot(self.t2.as_dvec3())],
+            nh,
+        )
+    }
+
+    /// A bound on how far the stretched normal moves per radian that `wm` moves, for every
+    /// unit `wm` at least `min_polar_sin` away from the z axis (by the sine of its polar angle
+    /// from +z or -z). The stretch is normalize(A wm) with A = diag(1 / alpha_x,
+    /// 1 / alpha_y, 1): its derivative is at most |A| / |A wm|, and |A wm|^2 is at least
+    /// cos^2 + s sin^2 with s the smaller of 1 / alpha^2.
+    pub fn stretch_lipschitz(&self, min_polar_sin: f64) -> f64 {
+        let inv = |a: f32| 1.0 / a as f64;
+        let largest = inv(self.alpha_x).max(inv(self.alpha_y)).max(1.0);
+        let s = inv(self.alpha_x).min(inv(self.alpha_y)).powi(2);
+        let sin2 = min_polar_sin * min_polar_sin;
+        let least2 = if s >= 1.0 { 1.0 + sin2 * (s - 1.0) } else { s };
+        largest / least2.sqrt()
+    }
+}
+
+/// What a microfacet BSDF's sampler makes of the normal it drew: the sampler of the BSDF and
+/// the bounded sampler of UPG's tentative rays call the same rule.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scatter {
+    /// Mirror reflection about `wm` (a conductor), both directions above the surface.
+    Reflect,
+    /// Reflection with probability F(wo . wm), else refraction into the other side, `eta`
+    /// being the index inside over outside.
+    Dielectric { eta: f32 },
+}
+
+impl Scatter {
+    /// The direction `wi` from `wo` through the normal `wm`, `u` uniform choosing reflection
+    /// or refraction; `None` where the sample falls on the wrong side (or refraction is
+    /// total internal reflection).
+    pub fn apply(&self, wo: Vec3, wm: Vec3, u: f32) -> Option<Vec3> {
+        match *self {
+            Scatter::Reflect => {
+                let wi = reflect(wo, wm);
+                (wo.z > 0.0 && wi.z > 0.0).then_some(wi)
+            }
+            Scatter::Dielectric { eta } => {
+                let r = fresnel::dielectric(wo.dot(wm), eta);
+                if u < r {
+                    let wi = reflect(wo, wm);
+                    (wi.z * wo.z > 0.0).then_some(wi)
+                } else {
+                    let (wi, _) = fresnel::refract(wo, wm, eta)?;
+                    (wi.z * wo.z < 0.0).then_some(wi)
+                }
+            }
+        }
+    }
+
+    /// Whether it can refract: sampled directions may lie on either side.
+    pub fn transmits(&self) -> bool {
+        matches!(self, Scatter::Dielectric { .. })
     }
 }
 

@@ -11,6 +11,14 @@
 //! where its pdf factorises: P is closed form and sampling inside the bound is exact by
 //! inverting the two CDFs.
 //!
+//! A Trowbridge-Reitz lobe (conductors, rough dielectrics) is sampled through visible
+//! normals, which factorise in no angles around a fixed axis. Its bound lives in Heitz's
+//! sampling plane instead, where the BSDF's points are uniform over a region of area A: a
+//! rectangle R that holds the point of every normal a direction in the cone can come from
+//! ([`crate::bsdf::MicrofacetLobe::bound`]). A trial draws a point uniformly in R and fails at
+//! once outside the region; inside, it lifts and scatters it as the BSDF does. Its density is
+//! then the BSDF's times A / |R| wherever a success is possible: P = |R| / A.
+//!
 //! For a mixture (Phong's diffuse and glossy parts, weights w_c, bounds B_c with mass p_c) a
 //! trial picks component c with probability w_c p_c / P, P = sum_c w_c p_c, and draws from
 //! pdf_c / p_c on B_c. Its density at w is (1/P) sum_c w_c pdf_c(w) [w in B_c]. Every direction
@@ -18,7 +26,8 @@
 //! density is pdf(w) / P: a trial succeeds with probability p_acc / P and E[N / P] = 1/p_acc.
 
 use crate::accel::{offset_ray_origin, Ray, PACKET};
-use crate::bsdf::{Bsdf, Lobe, LobeShape, PolarBound, PolarInterval};
+use crate::bsdf::microfacet::{Scatter, VisibleNormals};
+use crate::bsdf::{Bsdf, Lobe, LobeShape, PointRect, PolarBound, PolarInterval};
 use crate::sampling::Rng;
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
@@ -236,6 +245,14 @@ impl Component {
     }
 }
 
+/// A microfacet lobe's bound: its sampling points drawn uniformly from `rect`.
+#[derive(Clone, Copy, Debug)]
+struct NormalsBound {
+    normals: VisibleNormals,
+    scatter: Scatter,
+    rect: PointRect,
+}
+
 /// Where tentative rays from one origin vertex towards one target may go: the angular bound
 /// (000 eqs. 2.63-2.64) of each lobe of the origin's BSDF, and the sampler inside it.
 #[derive(Clone, Debug)]
@@ -251,7 +268,9 @@ pub struct AngularBound<'a> {
     radius: f32,
     components: [Component; 2],
     len: usize,
-    /// P = sum_c w_c p_b,c.
+    /// The bound of a BSDF that is one microfacet lobe (then there are no components).
+    normals: Option<NormalsBound>,
+    /// P = sum_c w_c p_b,c, or |R| / A for a microfacet lobe.
     p_bound: f64,
     /// Every component is whole: trials are exactly [`Bsdf::sample`].
     whole: bool,
@@ -283,8 +302,12 @@ impl<'a> AngularBound<'a> {
         // the radius grown by twice the offset (once suffices, the rest covers rounding), so it
         // holds every direction that can succeed from either origin. A BSDF without bounded
         // lobes may also transmit (rough dielectrics): its trials, drawn from the whole BSDF,
-        // offset their own origins too.
-        let (origin, per_trial_offset, cone_radius) = if bsdf.is_smooth() || !lobes.is_bounded() {
+        // offset their own origins too, as do those of a microfacet lobe.
+        let microfacet = lobes.as_microfacet();
+        let (origin, per_trial_offset, cone_radius) = if bsdf.is_smooth()
+            || !lobes.is_bounded()
+            || microfacet.is_some()
+        {
             let offset = (offset_ray_origin(position, ng, ng) - position).length();
             (position, Some(ng), radius as f64 + 2.0 * offset as f64)
         } else {
@@ -318,6 +341,34 @@ impl<'a> AngularBound<'a> {
                 ..component
             };
         }
+        let normals = microfacet.and_then(|lobe| {
+            let to_target = (target - origin).as_dvec3();
+            let d = to_target.length();
+            if d <= cone_radius {
+                return None;
+            }
+            let frame = bsdf.frame();
+            let t = to_target / d;
+            let axis = DVec3::new(
+                t.dot(frame.x.as_dvec3()),
+                t.dot(frame.y.as_dvec3()),
+                t.dot(frame.z.as_dvec3()),
+            )
+            .normalize();
+            let wo = bsdf.wo_local();
+            let rect = lobe.bound(wo, axis, (cone_radius / d).asin())?;
+            let normals = lobe.normals(wo);
+            let p_b = rect.area() / normals.area();
+            (p_b < WHOLE_LOBE_SHARE).then(|| {
+                p_bound = p_b;
+                whole = false;
+                NormalsBound {
+                    normals,
+                    scatter: lobe.scatter,
+                    rect,
+                }
+            })
+        });
         Ok(AngularBound {
             bsdf: bsdf.clone(),
             origin,
@@ -326,6 +377,7 @@ impl<'a> AngularBound<'a> {
             radius,
             components,
             len: lobes.as_slice().len(),
+            normals,
             p_bound: if whole { 1.0 } else { p_bound },
             whole,
         })
@@ -353,6 +405,15 @@ impl<'a> AngularBound<'a> {
     pub fn sample_direction(&self, u: [f32; 3]) -> Option<Vec3> {
         if self.whole {
             return self.bsdf.sample(u).map(|s| s.wi);
+        }
+        if let Some(bound) = &self.normals {
+            let p = bound.rect.sample([u[1], u[2]]);
+            if !bound.normals.contains(p) {
+                return None;
+            }
+            let wm = bound.normals.lift(p);
+            let wi = bound.scatter.apply(self.bsdf.wo_local(), wm, u[0])?;
+            return Some(self.bsdf.frame().to_world(wi));
         }
         let pick = u[0] as f64 * self.p_bound;
         let mut chosen = &self.components[0];
