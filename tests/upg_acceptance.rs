@@ -1,14 +1,16 @@
 //! The acceptance estimator of UPG is unbiased: the mean of many estimates N/P matches 1/p_acc
-//! integrated numerically (000 eqs. 2.57, 2.65) for lambert, Phong and (whole-BSDF trials)
-//! Trowbridge-Reitz conductor and dielectric lobes, reflected and refracted, oblique and
-//! near-grazing targets, short distances and an occluder. Packets and single rays agree trial
+//! integrated numerically (000 eqs. 2.57, 2.65) for lambert, Phong, Trowbridge-Reitz conductor
+//! and dielectric lobes (reflected and refracted, from either side, isotropic and
+//! anisotropic), the layered materials (rough and smooth coatings over diffuse and conductor
+//! bases) and diffuse transmission, oblique and near-grazing targets, short distances and an
+//! occluder. Packets and single rays agree trial
 //! for trial; the whole-lobe fallback is the BSDF's own sampling; the cap is reported; each lobe
 //! shape's polar bound holds the probability of its interval.
 
 use glam::{DVec3, Vec3};
 use vmerge::accel::{Ray, PACKET};
 use vmerge::bsdf::microfacet::Roughness;
-use vmerge::bsdf::{Bsdf, MaterialKind, TransportMode};
+use vmerge::bsdf::{Bsdf, LobeKind, MaterialKind, Params, TransportMode};
 use vmerge::color::Rgb;
 use vmerge::integrator::upg::acceptance::{
     AcceptanceError, AngularBound, Estimator, Outcome, PacketWidth, TentativeTracer,
@@ -113,6 +115,28 @@ fn rough_dielectric(alpha: f32) -> MaterialKind {
             remap: false,
         },
     }
+}
+
+fn layered(type_name: &str, params: Params) -> MaterialKind {
+    MaterialKind::from_params(type_name, &params).expect("valid parameters")
+}
+
+fn coated_diffuse(roughness: f32) -> MaterialKind {
+    layered(
+        "coateddiffuse",
+        Params::new()
+            .with_color("reflectance", Rgb::splat(0.6))
+            .with_number("roughness", roughness),
+    )
+}
+
+fn coated_conductor(interface: f32, conductor: f32) -> MaterialKind {
+    layered(
+        "coatedconductor",
+        Params::new()
+            .with_number("interface.roughness", interface)
+            .with_number("conductor.roughness", conductor),
+    )
 }
 
 fn cfg(
@@ -247,6 +271,17 @@ fn p_acc(c: &Config, s: &Setup, b: &Bsdf, panels: usize) -> f64 {
             let pdf = b.eval(dir.as_vec3()).pdf_w as f64;
             let cos_disc = dir.dot(s.normal).abs();
             sum += ws * ww * RADIUS * RADIUS * cos_s * cos_s * pdf * cos_disc / dist2;
+        }
+    }
+    // A delta component (a smooth coating's mirror) adds its weight where its one direction
+    // meets the disc (the configurations with one have no occluder).
+    for kind in b.lobes().as_slice() {
+        if let LobeKind::Delta { weight, direction } = *kind {
+            let d = direction.as_dvec3();
+            let t = s.target.dot(s.normal) / d.dot(s.normal);
+            if t > 0.0 && (d * t - s.target).length() <= RADIUS {
+                sum += weight as f64;
+            }
         }
     }
     sum
@@ -503,6 +538,78 @@ fn configs() -> Vec<Config> {
             (150.0, 180.0),
             20.0,
             0.0,
+        ),
+        // Layered materials: a rough top (visible normals) or a smooth one (a delta, counted
+        // where its mirror direction meets the disc) beside the base's cosine lobe or its
+        // conductor seen through the coating; diffuse transmission's two cosine lobes.
+        cfg(
+            "coated diffuse, rough top",
+            coated_diffuse(0.01),
+            40.0,
+            (40.0, 180.0),
+            30.0,
+            0.0,
+        ),
+        cfg(
+            "coated diffuse, smooth top",
+            coated_diffuse(0.0),
+            40.0,
+            (30.0, 150.0),
+            20.0,
+            10.0,
+        ),
+        cfg(
+            "coated diffuse, at the mirror",
+            coated_diffuse(0.0),
+            40.0,
+            (40.0, 180.0),
+            20.0,
+            0.0,
+        ),
+        cfg(
+            "coated conductor, rough on rough",
+            coated_conductor(0.01, 0.04),
+            35.0,
+            (35.0, 180.0),
+            30.0,
+            0.0,
+        ),
+        cfg(
+            "coated conductor, smooth top",
+            coated_conductor(0.0, 0.04),
+            35.0,
+            (32.0, 177.0),
+            30.0,
+            10.0,
+        ),
+        cfg(
+            "coated conductor, at the mirror",
+            coated_conductor(0.0, 0.04),
+            35.0,
+            (35.0, 180.0),
+            30.0,
+            0.0,
+        ),
+        cfg(
+            "coated conductor, smooth base",
+            coated_conductor(0.01, 0.0),
+            35.0,
+            (37.0, 182.0),
+            30.0,
+            0.0,
+        ),
+        cfg(
+            "diffuse transmission, through",
+            layered(
+                "diffusetransmission",
+                Params::new()
+                    .with_color("reflectance", Rgb::splat(0.3))
+                    .with_color("transmittance", Rgb::splat(0.6)),
+            ),
+            30.0,
+            (150.0, 40.0),
+            20.0,
+            10.0,
         ),
         occluded(
             cfg(

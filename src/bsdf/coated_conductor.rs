@@ -20,12 +20,15 @@
 //! total internal reflection is no sample.
 
 use super::layer::{count, read_roughness, Coating};
-use super::microfacet::Roughness;
+use super::microfacet::{Roughness, Scatter};
 use super::params::{
     clamp_to_one, color, number, BsdfError, EnergyExcess, ParamKind, ParamRange, ParamReader,
     ParamSpec, ParamValue, Params,
 };
-use super::{fresnel, Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobes, TransportMode};
+use super::{
+    fresnel, Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, LobeKind, Lobes, MicrofacetLobe,
+    TransportMode,
+};
 use crate::color::Rgb;
 use crate::frame::Frame;
 use glam::Vec3;
@@ -129,6 +132,14 @@ impl CoatedConductor {
 
     fn base_is_smooth(&self) -> bool {
         self.roughness.distribution().effectively_smooth()
+    }
+
+    /// How a normal of the base turns a direction: reflected between two crossings of the
+    /// coating.
+    fn base_scatter(&self) -> Scatter {
+        Scatter::UnderCoating {
+            eta: self.coating.eta,
+        }
     }
 }
 
@@ -283,13 +294,12 @@ impl Bxdf for CoatedConductor {
             if self.base_is_smooth() {
                 return Some(delta(self.mirror_weight(wo), 1.0 - p_top));
             }
-            let inner = c.inner(wo);
-            let wm = self.roughness.distribution().sample_wm(inner, [u[1], u[2]]);
-            let reflected = 2.0 * inner.dot(wm) * wm - inner;
-            if reflected.z <= 0.0 {
-                return None;
-            }
-            c.outer(reflected)?
+            let scatter = self.base_scatter();
+            let wm = self
+                .roughness
+                .distribution()
+                .sample_wm(scatter.seen_from(wo), [u[1], u[2]]);
+            scatter.apply(wo, wm, u[0])?
         };
         self.eval(wo, wi, mode).sample_at(wi)
     }
@@ -299,9 +309,35 @@ impl Bxdf for CoatedConductor {
         self.conductor_fresnel(1.0) * (1.0 - f0) * (1.0 - f0) + Rgb::splat(f0)
     }
 
-    /// The coating's and the conductor's lobes have no closed-form bound: the whole BSDF is
-    /// sampled.
-    fn lobes(&self, _: Vec3, _: &Frame) -> Lobes {
-        Lobes::UNBOUNDED
-    }
+    /// The coating's top (rough or a mirror) and the base seen through the coating (rough or a
+    /// mirror), chosen as [`Bxdf::sample`] chooses.
+    fn lobes(&self, wo: Vec3, frame: &Frame) -> Lobes {
+        if wo.z <= 0.0 || self.is_delta() {
+            return Lobes::UNBOUNDED;
+        }
+        let c = &self.coating;
+        let p_top = c.top_probability(wo, self.base_weight(wo));
+        let mirror = frame.to_world(Vec3::new(-wo.x, -wo.y, wo.z));
+        let part = |weight: f32, smooth: bool, lobe: MicrofacetLobe| {
+            if smooth {
+                LobeKind::Delta {
+                    weight,
+                    direction: mirror,
+                }
+            } else {
+                LobeKind::Microfacet { weight, lobe }
+            }
+        };
+        let top = MicrofacetLobe {
+            distribution: c.top(),
+            scatter: Scatter::Reflect,
+        };
+        let base = MicrofacetLobe {
+            distribution: self.roughness.distribution(),
+            scatter: self.base_scatter(),
+        };
+        Lobes::NONE
+            .with(part(p_top, c.is_smooth(), top))
+            .with(part(1.0 - p_top, self.base_is_smooth(), base))
+}
 }

@@ -18,7 +18,11 @@ use super::params::{
     clamp_to_one, color, number, BsdfError, EnergyExcess, EnergyFix, ParamRange, ParamReader,
     ParamSpec, Params,
 };
-use super::{Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobes, TransportMode};
+use super::microfacet::Scatter;
+use super::{
+    Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobe, LobeKind, LobeShape, Lobes, MicrofacetLobe,
+    TransportMode,
+};
 use crate::color::Rgb;
 use crate::frame::Frame;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
@@ -221,8 +225,32 @@ impl Bxdf for CoatedDiffuse {
         self.r * (1.0 - f0) + Rgb::splat(f0)
     }
 
-    /// The coating's lobe has no closed-form bound: the whole BSDF is sampled.
-    fn lobes(&self, _: Vec3, _: &Frame) -> Lobes {
-        Lobes::UNBOUNDED
+    /// The coating's top (rough or a mirror) and the base's cosine lobe, chosen as
+    /// [`Bxdf::sample`] chooses.
+    fn lobes(&self, wo: Vec3, frame: &Frame) -> Lobes {
+        if wo.z <= 0.0 {
+            return Lobes::UNBOUNDED;
+        }
+        let c = &self.coating;
+        let p_top = c.top_probability(wo, self.base_weight());
+        let top = if c.is_smooth() {
+            LobeKind::Delta {
+                weight: p_top,
+                direction: frame.to_world(Vec3::new(-wo.x, -wo.y, wo.z)),
+            }
+        } else {
+            LobeKind::Microfacet {
+                weight: p_top,
+                lobe: MicrofacetLobe {
+                    distribution: c.top(),
+                    scatter: Scatter::Reflect,
+                },
+            }
+        };
+        Lobes::NONE.with(top).with(LobeKind::Polar(Lobe {
+            weight: 1.0 - p_top,
+            axis: frame.z,
+            shape: LobeShape::Cosine,
+        }))
     }
 }

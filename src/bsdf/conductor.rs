@@ -8,7 +8,7 @@ use super::fresnel;
 use super::microfacet::{Roughness, Scatter, TrowbridgeReitz};
 use super::params::{color, BsdfError, EnergyExcess, ParamReader, ParamSpec, Params};
 use super::{
-    reflect_local, Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobes, MicrofacetLobe,
+    reflect_local, Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, LobeKind, Lobes, MicrofacetLobe,
     TransportMode,
 };
 use crate::color::Rgb;
@@ -178,9 +178,12 @@ impl Bxdf for Conductor {
         if self.is_delta() {
             Lobes::NONE
         } else {
-            Lobes::microfacet(MicrofacetLobe {
-                distribution: self.roughness.distribution(),
-                scatter: Scatter::Reflect,
+            Lobes::NONE.with(LobeKind::Microfacet {
+                weight: 1.0,
+                lobe: MicrofacetLobe {
+                    distribution: self.roughness.distribution(),
+                    scatter: Scatter::Reflect,
+                },
             })
         }
     }

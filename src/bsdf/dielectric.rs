@@ -14,7 +14,7 @@ use super::fresnel;
 use super::microfacet::{Roughness, Scatter, TrowbridgeReitz};
 use super::params::{number, BsdfError, EnergyExcess, ParamRange, ParamReader, ParamSpec, Params};
 use super::{
-    Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Glass, Lobes, MicrofacetLobe, TransportMode,
+    Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Glass, LobeKind, Lobes, MicrofacetLobe, TransportMode,
 };
 use crate::color::Rgb;
 use crate::frame::Frame;
@@ -194,9 +194,12 @@ impl Bxdf for Dielectric {
         if self.is_delta() {
             Lobes::NONE
         } else {
-            Lobes::microfacet(MicrofacetLobe {
-                distribution: self.roughness.distribution(),
-                scatter: Scatter::Dielectric { eta: self.eta },
+            Lobes::NONE.with(LobeKind::Microfacet {
+                weight: 1.0,
+                lobe: MicrofacetLobe {
+                    distribution: self.roughness.distribution(),
+                    scatter: Scatter::Dielectric { eta: self.eta },
+                },
             })
         }
     }

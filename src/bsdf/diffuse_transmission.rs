@@ -7,7 +7,7 @@
 //! medium, so radiance and importance are scaled alike.
 
 use super::params::{color, BsdfError, EnergyExcess, EnergyFix, ParamReader, ParamSpec, Params};
-use super::{Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobes, TransportMode};
+use super::{Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobe, LobeKind, LobeShape, Lobes, TransportMode};
 use crate::color::Rgb;
 use crate::frame::Frame;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
@@ -125,9 +125,20 @@ impl Bxdf for DiffuseTransmission {
         self.r + self.t
     }
 
-    /// The transmitted half lies below the surface, which a bounding sampler rejects: the
-    /// whole BSDF is sampled.
-    fn lobes(&self, _: Vec3, _: &Frame) -> Lobes {
-        Lobes::UNBOUNDED
+    /// A cosine lobe on each side, chosen as [`Bxdf::sample`] chooses.
+    fn lobes(&self, _: Vec3, frame: &Frame) -> Lobes {
+        let Some(pr) = self.reflection_probability() else {
+            return Lobes::UNBOUNDED;
+        };
+        let side = |weight, axis| {
+            LobeKind::Polar(Lobe {
+                weight,
+                axis,
+                shape: LobeShape::Cosine,
+            })
+        };
+        Lobes::NONE
+            .with(side(pr, frame.z))
+            .with(side(1.0 - pr, -frame.z))
     }
 }

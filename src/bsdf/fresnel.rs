@@ -57,6 +57,20 @@ pub fn refract(wi: Vec3, n: Vec3, eta: f32) -> Option<(Vec3, f32)> {
     Some((wt.normalize(), eta))
 }
 
+/// The direction under a flat interface of relative index `eta` (inside over outside) that
+/// refracts into the outside direction `w` (upper hemisphere): a layer's inside direction.
+pub fn into_layer(w: Vec3, eta: f32) -> Vec3 {
+    let sin2 = (1.0 - w.z * w.z).max(0.0) / (eta * eta);
+    Vec3::new(w.x / eta, w.y / eta, (1.0 - sin2).max(0.0).sqrt())
+}
+
+/// The outside direction an inside one `w` (going up) refracts into across a flat interface of
+/// relative index `eta`; `None` under total internal reflection.
+pub fn out_of_layer(w: Vec3, eta: f32) -> Option<Vec3> {
+    let sin2 = (1.0 - w.z * w.z).max(0.0) * eta * eta;
+    (sin2 < 1.0).then(|| Vec3::new(w.x * eta, w.y * eta, (1.0 - sin2).sqrt()))
+}
+
 /// The few complex operations the conductor's Fresnel equations need, in f64: its
 /// cancellations (cos_t of a metal) lose f32's digits.
 #[derive(Clone, Copy, Debug)]

@@ -1,7 +1,7 @@
 //! Lambertian reflection, f = kd / pi, sampled by the cosine.
 
 use super::params::{clamp_to_one, color, BsdfError, EnergyExcess, EnergyFix, ParamReader, ParamSpec, Params};
-use super::{Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobe, LobeShape, Lobes, TransportMode};
+use super::{Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobe, LobeKind, LobeShape, Lobes, TransportMode};
 use crate::color::Rgb;
 use crate::frame::Frame;
 use crate::sampling::{cosine_hemisphere, cosine_hemisphere_pdf};
@@ -80,11 +80,11 @@ impl Bxdf for Lambert {
     #[inline]
     fn lobes(&self, _: Vec3, frame: &Frame) -> Lobes {
         let mut lobes = Lobes::NONE;
-        lobes.push(Lobe {
+        lobes.push(LobeKind::Polar(Lobe {
             weight: 1.0,
             axis: frame.z,
             shape: LobeShape::Cosine,
-        });
+        }));
         lobes
     }
 }

@@ -29,7 +29,7 @@
 //! lost rather than re-reflected. `nsamples` has no meaning for a deterministic model.
 
 use super::fresnel;
-use super::microfacet::{Roughness, TrowbridgeReitz};
+use super::microfacet::{Roughness, Scatter, TrowbridgeReitz};
 use super::params::{BsdfError, ParamReader};
 use crate::color::Rgb;
 use glam::Vec3;
@@ -245,21 +245,18 @@ impl Coating {
 
     /// A direction from the rough top's reflection lobe; `None` below the surface.
     pub fn sample_reflection(&self, wo: Vec3, u: [f32; 2]) -> Option<Vec3> {
-        let wi = reflect(wo, self.top().sample_wm(wo, u));
-        (wi.z > 0.0).then_some(wi)
+        Scatter::Reflect.apply(wo, self.top().sample_wm(wo, u), 0.0)
     }
 
     /// The inside direction (above the base) that refracts into the outside direction `w`.
     pub fn inner(&self, w: Vec3) -> Vec3 {
-        let sin2 = (1.0 - w.z * w.z).max(0.0) / (self.eta * self.eta);
-        Vec3::new(w.x / self.eta, w.y / self.eta, (1.0 - sin2).max(0.0).sqrt())
+        fresnel::into_layer(w, self.eta)
     }
 
     /// The outside direction an inside one `w` (going up) refracts into; `None` under total
     /// internal reflection.
     pub fn outer(&self, w: Vec3) -> Option<Vec3> {
-        let sin2 = (1.0 - w.z * w.z).max(0.0) * self.eta * self.eta;
-        (sin2 < 1.0).then(|| Vec3::new(w.x * self.eta, w.y * self.eta, (1.0 - sin2).sqrt()))
+        fresnel::out_of_layer(w, self.eta)
     }
 
     /// What crosses the coating once for the outside direction `w` (inside direction `inner`):

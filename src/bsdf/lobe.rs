@@ -171,9 +171,33 @@ impl MicrofacetLobe {
     /// normals by at most [`VisibleNormals::stretch_lipschitz`] times as much, and the
     /// projection onto the sampling plane does not lengthen distances: a square around the
     /// cap's centre holds all its points.
+    ///
+    /// Under a coating (index eta >= 1) the outside cone first refracts into the layer: the
+    /// refraction turns polar angles by at most cos / (eta cos') <= 1 / eta and azimuths by
+    /// 1 / eta, so the inside cone has at most gamma / eta around the refracted axis, and the
+    /// base reflects inside as a conductor does.
     pub fn bound(&self, wo: Vec3, axis: DVec3, gamma: f64) -> Option<PointRect> {
-        let normals = VisibleNormals::new(&self.distribution, wo);
-        let wo = wo.as_dvec3().normalize();
+        let normals = self.normals(wo);
+        let (wo, axis, gamma) = match self.scatter {
+            Scatter::UnderCoating { eta } => {
+                if eta < 1.0 || axis.z <= 0.0 {
+                    return None;
+                }
+                let eta = eta as f64;
+                let into = |w: DVec3| {
+                    let sin2 = (1.0 - w.z * w.z).max(0.0) / (eta * eta);
+                    DVec3::new(w.x / eta, w.y / eta, (1.0 - sin2).sqrt()).normalize()
+                };
+                (
+                    self.scatter.seen_from(wo).as_dvec3().normalize(),
+                    into(axis),
+                    gamma / eta,
+                )
+            }
+            Scatter::Reflect | Scatter::Dielectric { .. } => {
+                (wo.as_dvec3().normalize(), axis, gamma)
+            }
+        };
         let psi = wo.dot(axis).clamp(-1.0, 1.0).acos();
         let least_dot = (psi + gamma).min(std::f64::consts::PI).cos();
         let side = wo.z.signum();
@@ -243,34 +267,43 @@ impl MicrofacetLobe {
 
     /// The visible-normal sampler of this lobe for `wo` (local).
     pub fn normals(&self, wo: Vec3) -> VisibleNormals {
-        VisibleNormals::new(&self.distribution, wo)
+        VisibleNormals::new(&self.distribution, self.scatter.seen_from(wo))
     }
 }
 
-/// The components of a BSDF's sampling mixture with positive weight (at most two, none for a
-/// delta BSDF), or its one microfacet lobe, or the word that its lobes have no closed-form
-/// bound, so a bounding sampler must sample the whole BSDF.
+/// One component of a BSDF's sampling mixture, as a bounding sampler sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LobeKind {
+    /// A density around an axis (lambert, Phong, diffuse transmission).
+    Polar(Lobe),
+    /// Trowbridge-Reitz visible normals, drawn with probability `weight`.
+    Microfacet { weight: f32, lobe: MicrofacetLobe },
+    /// One direction (world space), drawn with probability `weight`: a smooth coating's
+    /// reflection beside a non-delta base.
+    Delta { weight: f32, direction: Vec3 },
+}
+
+/// The components of a BSDF's sampling mixture with positive weight (at most three, none for
+/// a delta BSDF), or the word that its lobes have no closed-form bound, so a bounding sampler
+/// must sample the whole BSDF.
 #[derive(Clone, Copy, Debug)]
 pub struct Lobes {
-    items: [Lobe; 2],
+    items: [LobeKind; 3],
     len: usize,
     bounded: bool,
-    microfacet: Option<MicrofacetLobe>,
 }
 
 impl Lobes {
-    const UNUSED: Lobe = Lobe {
+    const UNUSED: LobeKind = LobeKind::Delta {
         weight: 0.0,
-        axis: Vec3::Z,
-        shape: LobeShape::Cosine,
+        direction: Vec3::Z,
     };
 
     /// No component: a delta BSDF.
     pub const NONE: Lobes = Lobes {
-        items: [Lobes::UNUSED; 2],
+        items: [Lobes::UNUSED; 3],
         len: 0,
         bounded: true,
-        microfacet: None,
     };
 
     /// No closed-form bound: sample the whole BSDF.
@@ -279,33 +312,31 @@ impl Lobes {
         ..Lobes::NONE
     };
 
-    /// One lobe sampled by visible normals, the BSDF's whole sampling.
-    pub fn microfacet(lobe: MicrofacetLobe) -> Lobes {
-        Lobes {
-            microfacet: Some(lobe),
-            ..Lobes::NONE
-        }
-    }
-
-    /// The components, each with a closed-form bound; empty when [`Lobes::is_bounded`] is
-    /// false or the BSDF is one microfacet lobe.
-    pub fn as_slice(&self) -> &[Lobe] {
+    /// The components; empty when [`Lobes::is_bounded`] is false.
+    pub fn as_slice(&self) -> &[LobeKind] {
         &self.items[..self.len]
-    }
-
-    /// The BSDF's one microfacet lobe, where it is one.
-    pub fn as_microfacet(&self) -> Option<&MicrofacetLobe> {
-        self.microfacet.as_ref()
     }
 
     pub fn is_bounded(&self) -> bool {
         self.bounded
     }
 
-    /// Adds a component (at most two).
-    pub fn push(&mut self, lobe: Lobe) {
-        self.items[self.len] = lobe;
-        self.len += 1;
+    /// Adds a component (at most three); one of zero weight is left out.
+    pub fn push(&mut self, component: LobeKind) {
+        let weight = match component {
+            LobeKind::Polar(lobe) => lobe.weight,
+            LobeKind::Microfacet { weight, .. } | LobeKind::Delta { weight, .. } => weight,
+        };
+        if weight > 0.0 {
+            self.items[self.len] = component;
+            self.len += 1;
+        }
+    }
+
+    /// This and `component`.
+    pub fn with(mut self, component: LobeKind) -> Lobes {
+        self.push(component);
+        self
     }
 }
 
@@ -315,7 +346,8 @@ mod tests {
     use crate::sampling::{Rng, Stream};
 
     /// Every sample the BSDF's own sampler sends into the cone comes from a point inside the
-    /// rectangle: random lobes (isotropic and anisotropic, reflecting and refracting, alpha
+    /// rectangle: random lobes (isotropic and anisotropic, reflecting, refracting and under a
+    /// coating, alpha
     /// 0.005 to 1.5), random `wo` (grazing and from inside), random cones of 0.1 to 20
     /// degrees, most of them aimed at a sampled direction so that hits are many.
     #[test]
@@ -327,12 +359,11 @@ mod tests {
             let alpha = |u: f32| 0.005f32 * 300f32.powf(u);
             let ax = alpha(r());
             let ay = if case % 2 == 0 { ax } else { alpha(r()) };
-            let scatter = if case % 3 == 0 {
-                Scatter::Reflect
-            } else {
-                Scatter::Dielectric {
-                    eta: 1.1 + 0.8 * r(),
-                }
+            let eta = 1.1 + 0.8 * r();
+            let scatter = match case % 3 {
+                0 => Scatter::Reflect,
+                1 => Scatter::Dielectric { eta },
+                _ => Scatter::UnderCoating { eta },
             };
             let lobe = MicrofacetLobe {
                 distribution: TrowbridgeReitz::new(ax, ay),
@@ -382,6 +413,9 @@ mod tests {
                 }
             }
         }
-        assert!(bounded > 150 && hits > 100_000, "{bounded} bounds, {hits} hits");
+        assert!(
+            bounded > 150 && hits > 100_000,
+            "{bounded} bounds, {hits} hits"
+        );
     }
 }

@@ -169,16 +169,9 @@ impl VisibleNormals {
     /// The point a normal `wm` lifts from (the inverse of [`Self::lift`]), in f64, with the
     /// stretched normal it passes through.
     pub fn project(&self, wm: DVec3) -> ([f64; 2], DVec3) {
-        let nh = DVec3::new(
-            wm.x / self.alpha_x as f64,
-            wm.y / self.alpha_y as f64,
-            wm.z,
-        )
-        .normalize();
-        (
-            [nh.dot(self.t1.as_dvec3()), nh.dot(self.t2.as_dvec3())],
-            nh,
-        )
+        let nh =
+            DVec3::new(wm.x / self.alpha_x as f64, wm.y / self.alpha_y as f64, wm.z).normalize();
+        ([nh.dot(self.t1.as_dvec3()), nh.dot(self.t2.as_dvec3())], nh)
     }
 
     /// A bound on how far the stretched normal moves per radian that `wm` moves, for every
@@ -205,6 +198,10 @@ pub enum Scatter {
     /// Reflection with probability F(wo . wm), else refraction into the other side, `eta`
     /// being the index inside over outside.
     Dielectric { eta: f32 },
+    /// Reflection about `wm` under a flat coating of index `eta`: `wo` refracts in, reflects,
+    /// and refracts out (a coated conductor's base; the normals are those visible from the
+    /// refracted `wo`).
+    UnderCoating { eta: f32 },
 }
 
 impl Scatter {
@@ -227,6 +224,23 @@ impl Scatter {
                     (wi.z * wo.z < 0.0).then_some(wi)
                 }
             }
+            Scatter::UnderCoating { eta } => {
+                let inner = fresnel::into_layer(wo, eta);
+                let reflected = 2.0 * inner.dot(wm) * wm - inner;
+                if reflected.z <= 0.0 {
+                    return None;
+                }
+                fresnel::out_of_layer(reflected, eta)
+            }
+        }
+    }
+
+    /// The direction the normals are drawn as seen from: `wo`, or under a coating its
+    /// refraction into it.
+    pub fn seen_from(&self, wo: Vec3) -> Vec3 {
+        match *self {
+            Scatter::UnderCoating { eta } => fresnel::into_layer(wo, eta),
+            Scatter::Reflect | Scatter::Dielectric { .. } => wo,
         }
     }
 

@@ -53,7 +53,9 @@ mod registry;
 
 pub use bxdf::{Bxdf, BxdfType};
 pub use layer::Coating;
-pub use lobe::{Lobe, LobeShape, Lobes, MicrofacetLobe, PointRect, PolarBound, PolarInterval};
+pub use lobe::{
+    Lobe, LobeKind, LobeShape, Lobes, MicrofacetLobe, PointRect, PolarBound, PolarInterval,
+};
 use microfacet::Roughness;
 pub use params::{
     BsdfError, EnergyExcess, EnergyFix, ParamKind, ParamProblem, ParamRange, ParamReader,

@@ -8,7 +8,7 @@ use super::params::{
     Params,
 };
 use super::{
-    reflect_local, Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobe, LobeShape, Lobes,
+    reflect_local, Albedo, BsdfEval, BsdfSample, Bxdf, BxdfType, Lobe, LobeKind, LobeShape, Lobes,
     TransportMode,
 };
 use crate::color::Rgb;
@@ -180,20 +180,20 @@ impl Bxdf for Phong {
         let pd = phong.diffuse_probability;
         let mut lobes = Lobes::NONE;
         if pd > 0.0 {
-            lobes.push(Lobe {
+            lobes.push(LobeKind::Polar(Lobe {
                 weight: pd,
                 axis: frame.z,
                 shape: LobeShape::Cosine,
-            });
+            }));
         }
         if pd < 1.0 {
-            lobes.push(Lobe {
+            lobes.push(LobeKind::Polar(Lobe {
                 weight: 1.0 - pd,
                 axis: frame.to_world(reflect_local(wo)),
                 shape: LobeShape::PowerCosine {
                     exponent: phong.exponent,
                 },
-            });
+            }));
         }
         lobes
     }

@@ -27,7 +27,9 @@
 
 use crate::accel::{offset_ray_origin, Ray, PACKET};
 use crate::bsdf::microfacet::{Scatter, VisibleNormals};
-use crate::bsdf::{Bsdf, Lobe, LobeShape, PointRect, PolarBound, PolarInterval};
+use crate::bsdf::{
+    Bsdf, Lobe, LobeKind, LobeShape, MicrofacetLobe, PointRect, PolarBound, PolarInterval,
+};
 use crate::sampling::Rng;
 use crate::scene::Scene;
 use glam::{DVec3, Vec3};
@@ -130,9 +132,6 @@ struct Component {
     /// Azimuths `[phi0, phi0 + phi_span]`.
     phi0: f64,
     phi_span: f64,
-    /// w_c p_b,c, and the running sum of it up to and including this component.
-    mass: f64,
-    cdf: f64,
 }
 
 /// An orthonormal basis around the unit `z` in f64 (the construction of `Frame::from_z`).
@@ -160,8 +159,6 @@ impl Component {
             polar: Polar::Whole,
             phi0: 0.0,
             phi_span: 2.0 * PI,
-            mass: 0.0,
-            cdf: 0.0,
         };
         let to_target = target - origin;
         let d = to_target.length();
@@ -245,12 +242,65 @@ impl Component {
     }
 }
 
-/// A microfacet lobe's bound: its sampling points drawn uniformly from `rect`.
+/// A microfacet lobe's bound: its sampling points drawn uniformly from `rect`, or as the BSDF
+/// draws them (`None`: the whole lobe).
 #[derive(Clone, Copy, Debug)]
 struct NormalsBound {
     normals: VisibleNormals,
     scatter: Scatter,
-    rect: PointRect,
+    rect: Option<PointRect>,
+}
+
+impl NormalsBound {
+    /// The bound of `lobe` for `wo` (local) around the cone of half-angle `gamma` about
+    /// `axis` (local), and its probability p_b.
+    fn new(lobe: &MicrofacetLobe, wo: Vec3, axis: DVec3, gamma: f64) -> (NormalsBound, f64) {
+        let normals = lobe.normals(wo);
+        let rect = lobe
+            .bound(wo, axis, gamma)
+            .map(|rect| (rect, rect.area() / normals.area()))
+            .filter(|&(_, p_b)| p_b < WHOLE_LOBE_SHARE);
+        let bound = NormalsBound {
+            normals,
+            scatter: lobe.scatter,
+            rect: rect.map(|(rect, _)| rect),
+        };
+        (bound, rect.map_or(1.0, |(_, p_b)| p_b))
+    }
+
+    /// A local direction from the lobe restricted to the bound; `None` for a point outside
+    /// the sampler's region or a direction the BSDF would reject.
+    fn sample(&self, wo: Vec3, u: [f32; 3]) -> Option<Vec3> {
+        let p = match self.rect {
+            Some(rect) => {
+                let p = rect.sample([u[1], u[2]]);
+                if !self.normals.contains(p) {
+                    return None;
+                }
+                p
+            }
+            None => self.normals.point([u[1], u[2]]),
+        };
+        self.scatter.apply(wo, self.normals.lift(p), u[0])
+    }
+}
+
+/// How a trial draws inside one component's bound.
+#[derive(Clone, Copy, Debug)]
+enum Draw {
+    Polar(Component),
+    Normals(NormalsBound),
+    /// A delta component's direction, inside the cone.
+    Delta(Vec3),
+}
+
+/// One mixture component's bound, with w_c p_b,c and the running sum of it up to and
+/// including this component.
+#[derive(Clone, Copy, Debug)]
+struct Part {
+    draw: Draw,
+    mass: f64,
+    cdf: f64,
 }
 
 /// Where tentative rays from one origin vertex towards one target may go: the angular bound
@@ -266,11 +316,8 @@ pub struct AngularBound<'a> {
     per_trial_offset: Option<Vec3>,
     target: Vec3,
     radius: f32,
-    components: [Component; 2],
-    len: usize,
-    /// The bound of a BSDF that is one microfacet lobe (then there are no components).
-    normals: Option<NormalsBound>,
-    /// P = sum_c w_c p_b,c, or |R| / A for a microfacet lobe.
+    parts: [Option<Part>; 3],
+    /// P = sum_c w_c p_b,c.
     p_bound: f64,
     /// Every component is whole: trials are exactly [`Bsdf::sample`].
     whole: bool,
@@ -302,82 +349,90 @@ impl<'a> AngularBound<'a> {
         // the radius grown by twice the offset (once suffices, the rest covers rounding), so it
         // holds every direction that can succeed from either origin. A BSDF without bounded
         // lobes may also transmit (rough dielectrics): its trials, drawn from the whole BSDF,
-        // offset their own origins too, as do those of a microfacet lobe.
-        let microfacet = lobes.as_microfacet();
-        let (origin, per_trial_offset, cone_radius) = if bsdf.is_smooth()
-            || !lobes.is_bounded()
-            || microfacet.is_some()
-        {
-            let offset = (offset_ray_origin(position, ng, ng) - position).length();
-            (position, Some(ng), radius as f64 + 2.0 * offset as f64)
+        // offset their own origins too, as do those of any lobe not around an axis.
+        let polar_only = lobes
+            .as_slice()
+            .iter()
+            .all(|kind| matches!(kind, LobeKind::Polar(_)));
+        let (origin, per_trial_offset, cone_radius) =
+            if bsdf.is_smooth() || !lobes.is_bounded() || !polar_only {
+                let offset = (offset_ray_origin(position, ng, ng) - position).length();
+                (position, Some(ng), radius as f64 + 2.0 * offset as f64)
+            } else {
+                (
+                    offset_ray_origin(position, ng, bsdf.frame().z),
+                    None,
+                    radius as f64,
+                )
+            };
+        let to_target = (target - origin).as_dvec3();
+        let distance = to_target.length();
+        let frame = bsdf.frame();
+        let t = to_target / distance;
+        let axis = DVec3::new(
+            t.dot(frame.x.as_dvec3()),
+            t.dot(frame.y.as_dvec3()),
+            t.dot(frame.z.as_dvec3()),
+        )
+        .normalize();
+        let inside = distance <= cone_radius;
+        let gamma = if inside {
+            0.0
         } else {
-            (
-                offset_ray_origin(position, ng, bsdf.frame().z),
-                None,
-                radius as f64,
-            )
+            (cone_radius / distance).asin()
         };
-        let mut components = [Component {
-            x: DVec3::X,
-            y: DVec3::Y,
-            z: DVec3::Z,
-            shape: LobeShape::Cosine,
-            polar: Polar::Whole,
-            phi0: 0.0,
-            phi_span: 0.0,
-            mass: 0.0,
-            cdf: 0.0,
-        }; 2];
+        let mut parts = [None; 3];
         let (mut p_bound, mut whole) = (0.0, true);
-        for (lobe, slot) in lobes.as_slice().iter().zip(components.iter_mut()) {
-            let (component, p_b) =
-                Component::new(lobe, origin.as_dvec3(), target.as_dvec3(), cone_radius);
-            whole &= matches!(component.polar, Polar::Whole) && p_b == 1.0;
-            let mass = lobe.weight as f64 * p_b;
+        for (kind, slot) in lobes.as_slice().iter().zip(parts.iter_mut()) {
+            let (weight, draw, p_b) = match kind {
+                LobeKind::Polar(lobe) => {
+                    let (component, p_b) =
+                        Component::new(lobe, origin.as_dvec3(), target.as_dvec3(), cone_radius);
+                    whole &= matches!(component.polar, Polar::Whole) && p_b == 1.0;
+                    (lobe.weight, Draw::Polar(component), p_b)
+                }
+                LobeKind::Microfacet { weight, lobe } => {
+                    let (bound, p_b) = if inside {
+                        let normals = lobe.normals(bsdf.wo_local());
+                        let whole_lobe = NormalsBound {
+                            normals,
+                            scatter: lobe.scatter,
+                            rect: None,
+                        };
+                        (whole_lobe, 1.0)
+                    } else {
+                        NormalsBound::new(lobe, bsdf.wo_local(), axis, gamma)
+                    };
+                    whole &= bound.rect.is_none();
+                    (*weight, Draw::Normals(bound), p_b)
+                }
+                LobeKind::Delta { weight, direction } => {
+                    // All of it or nothing lies in the cone; drawn alone it is not the whole
+                    // BSDF.
+                    whole = false;
+                    let held = inside || direction.as_dvec3().dot(t) >= gamma.cos();
+                    (
+                        *weight,
+                        Draw::Delta(*direction),
+                        if held { 1.0 } else { 0.0 },
+                    )
+                }
+            };
+            let mass = weight as f64 * p_b;
             p_bound += mass;
-            *slot = Component {
+            *slot = Some(Part {
+                draw,
                 mass,
                 cdf: p_bound,
-                ..component
-            };
+            });
         }
-        let normals = microfacet.and_then(|lobe| {
-            let to_target = (target - origin).as_dvec3();
-            let d = to_target.length();
-            if d <= cone_radius {
-                return None;
-            }
-            let frame = bsdf.frame();
-            let t = to_target / d;
-            let axis = DVec3::new(
-                t.dot(frame.x.as_dvec3()),
-                t.dot(frame.y.as_dvec3()),
-                t.dot(frame.z.as_dvec3()),
-            )
-            .normalize();
-            let wo = bsdf.wo_local();
-            let rect = lobe.bound(wo, axis, (cone_radius / d).asin())?;
-            let normals = lobe.normals(wo);
-            let p_b = rect.area() / normals.area();
-            (p_b < WHOLE_LOBE_SHARE).then(|| {
-                p_bound = p_b;
-                whole = false;
-                NormalsBound {
-                    normals,
-                    scatter: lobe.scatter,
-                    rect,
-                }
-            })
-        });
         Ok(AngularBound {
             bsdf: bsdf.clone(),
             origin,
             per_trial_offset,
             target,
             radius,
-            components,
-            len: lobes.as_slice().len(),
-            normals,
+            parts,
             p_bound: if whole { 1.0 } else { p_bound },
             whole,
         })
@@ -406,26 +461,29 @@ impl<'a> AngularBound<'a> {
         if self.whole {
             return self.bsdf.sample(u).map(|s| s.wi);
         }
-        if let Some(bound) = &self.normals {
-            let p = bound.rect.sample([u[1], u[2]]);
-            if !bound.normals.contains(p) {
-                return None;
-            }
-            let wm = bound.normals.lift(p);
-            let wi = bound.scatter.apply(self.bsdf.wo_local(), wm, u[0])?;
-            return Some(self.bsdf.frame().to_world(wi));
-        }
         let pick = u[0] as f64 * self.p_bound;
-        let mut chosen = &self.components[0];
-        for c in self.components[..self.len].iter().filter(|c| c.mass > 0.0) {
-            chosen = c;
-            if pick < c.cdf {
-                break;
+        let mut parts = self.parts.iter().flatten().filter(|p| p.mass > 0.0);
+        let first = parts.next()?;
+        let part = parts.fold(
+            first,
+            |chosen, p| if pick < chosen.cdf { chosen } else { p },
+        );
+        match &part.draw {
+            Draw::Polar(component) => {
+                let w = component.sample([u[1], u[2]]);
+                // A lobe's density lies on its axis's side; Phong's glossy part reaches below
+                // the surface, where the BSDF rejects it.
+                let axis_up = component.z.dot(self.bsdf.frame().z.as_dvec3()) > 0.0;
+                ((w.dot(self.bsdf.frame().z) > 0.0) == axis_up).then_some(w)
             }
+            Draw::Normals(bound) => {
+                // The pick's place within this part is a fresh uniform number for the scatter.
+                let v = ((pick - (part.cdf - part.mass)) / part.mass).clamp(0.0, 1.0) as f32;
+                let wi = bound.sample(self.bsdf.wo_local(), [v, u[1], u[2]])?;
+                Some(self.bsdf.frame().to_world(wi))
+            }
+            Draw::Delta(direction) => Some(*direction),
         }
-        let component = chosen;
-        let w = component.sample([u[1], u[2]]);
-        (w.dot(self.bsdf.frame().z) > 0.0).then_some(w)
     }
 
     /// The tentative ray of a trial, its `tmax` where it leaves the r-sphere; `None` for a
