@@ -374,7 +374,7 @@ mod tests {
             } else {
                 0.01 + 0.99 * r()
             };
-            let phi_o = 6.283 * r();
+            let phi_o = std::f32::consts::TAU * r();
             let sin_o = (1.0 - cos_o * cos_o).sqrt();
             let wo = Vec3::new(sin_o * phi_o.cos(), sin_o * phi_o.sin(), cos_o);
             let gamma = (0.1f64 + 19.9 * r() as f64).to_radians();
