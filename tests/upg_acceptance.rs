@@ -19,9 +19,11 @@ use vmerge::sampling::{Rng, Stream};
 
 const RADIUS: f64 = 0.05;
 
-/// An occluder-free scene of one (two-sided, infinite) target plane, and optionally a half-plane
-/// parallel to it halfway to the origin, `{q + s v + h u : h >= 0}`, shadowing the part of the
-/// disc with disc coordinate `u` beyond the projection of its edge.
+/// A scene of one (two-sided, infinite) target plane, the origin's own surface (the plane
+/// z = 0, which a trial crossing it from an origin offset to the wrong side would hit), and
+/// optionally a half-plane parallel to the target halfway to the origin,
+/// `{q + s v + h u : h >= 0}`, shadowing the part of the disc with disc coordinate `u` beyond the
+/// projection of its edge.
 struct Planes {
     target: DVec3,
     normal: DVec3,
@@ -46,11 +48,12 @@ impl TentativeTracer for Planes {
             let x = ray.origin.as_dvec3() + t * ray.dir.as_dvec3();
             ((x - q).dot(u) >= 0.0).then_some(t)
         });
-        match (target, occluder) {
-            (Some(a), Some(b)) => Some(a.min(b)),
-            (a, b) => a.or(b),
-        }
-        .map(|t| t as f32)
+        let own = plane_t(ray, DVec3::ZERO, DVec3::Z);
+        [target, occluder, own]
+            .into_iter()
+            .flatten()
+            .min_by(f64::total_cmp)
+            .map(|t| t as f32)
     }
 
     fn closest8(&self, rays: &[Ray; PACKET], active: u8) -> [Option<f32>; PACKET] {

@@ -341,21 +341,22 @@ impl<'a> AngularBound<'a> {
         }
         // Lobes with no closed-form bound leave no component: the bound is the whole BSDF.
         let lobes = bsdf.lobes();
-        // Every direction the BSDF keeps lies on the side of its frame's z. On a flat surface
-        // that is one side of the geometric plane, so this is the origin `Ray::spawn` gives each
-        // of them, and the cone is taken from it. With a shading normal the kept hemisphere
-        // crosses the geometric plane: each trial offsets the vertex to the side of its own
-        // direction, as `Ray::spawn` would, and the cone is taken from the vertex itself with
-        // the radius grown by twice the offset (once suffices, the rest covers rounding), so it
-        // holds every direction that can succeed from either origin. A BSDF without bounded
-        // lobes may also transmit (rough dielectrics): its trials, drawn from the whole BSDF,
-        // offset their own origins too, as do those of any lobe not around an axis.
-        let polar_only = lobes
-            .as_slice()
-            .iter()
-            .all(|kind| matches!(kind, LobeKind::Polar(_)));
+        // Where every lobe lies around an axis on the side of the frame's z, every direction the
+        // BSDF keeps lies on that side. On a flat surface that is one side of the geometric
+        // plane, so this is the origin `Ray::spawn` gives each of them, and the cone is taken
+        // from it. With a shading normal the kept hemisphere crosses the geometric plane: each
+        // trial offsets the vertex to the side of its own direction, as `Ray::spawn` would, and
+        // the cone is taken from the vertex itself with the radius grown by twice the offset
+        // (once suffices, the rest covers rounding), so it holds every direction that can
+        // succeed from either origin. A BSDF that may transmit (rough dielectrics, diffuse
+        // transmission), one without bounded lobes, and one with microfacet or delta lobes
+        // offset each trial's origin likewise.
+        let one_side = lobes.as_slice().iter().all(|kind| match kind {
+            LobeKind::Polar(lobe) => lobe.axis.dot(bsdf.frame().z) > 0.0,
+            LobeKind::Microfacet { .. } | LobeKind::Delta { .. } => false,
+        });
         let (origin, per_trial_offset, cone_radius) =
-            if bsdf.is_smooth() || !lobes.is_bounded() || !polar_only {
+            if bsdf.is_smooth() || !lobes.is_bounded() || !one_side {
                 let offset = (offset_ray_origin(position, ng, ng) - position).length();
                 (position, Some(ng), radius as f64 + 2.0 * offset as f64)
             } else {
