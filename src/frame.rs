@@ -22,6 +22,20 @@ impl Frame {
         Frame { x, y, z }
     }
 
+    /// A frame around the unit vector `z` whose `x` axis is `tangent` made orthogonal to `z`
+    /// (pbrt-v4's `Frame::FromXZ` after its Gram-Schmidt step), so an anisotropic lobe's
+    /// first axis follows the surface's parameterisation; [`Frame::from_z`] where the tangent
+    /// is zero or (within rounding, where its projection is noise) parallel to `z`.
+    pub fn from_xz(tangent: Vec3, z: Vec3) -> Self {
+        let x = tangent - z * z.dot(tangent);
+        let len2 = x.length_squared();
+        if !(len2 > 1e-8 * tangent.length_squared()) || !len2.is_finite() {
+            return Frame::from_z(z);
+        }
+        let x = x / len2.sqrt();
+        Frame { x, y: z.cross(x), z }
+    }
+
     pub fn to_local(&self, v: Vec3) -> Vec3 {
         Vec3::new(v.dot(self.x), v.dot(self.y), v.dot(self.z))
     }
@@ -55,5 +69,20 @@ mod tests {
             let v = Vec3::new(0.2, 0.5, -0.7);
             assert!((f.to_world(f.to_local(v)) - v).length() < 1e-6);
         }
+    }
+
+    #[test]
+    fn tangent_frames_follow_the_tangent() {
+        let z = Vec3::new(0.3, -0.8, 0.1).normalize();
+        let tangent = Vec3::new(1.0, 2.0, -0.5);
+        let f = Frame::from_xz(tangent, z);
+        let projected = (tangent - z * z.dot(tangent)).normalize();
+        assert!((f.x - projected).length() < 1e-6);
+        assert!(f.x.cross(f.y).dot(f.z) > 0.999);
+        for (a, b) in [(f.x, f.y), (f.y, f.z), (f.x, f.z)] {
+            assert!(a.dot(b).abs() < 1e-6);
+        }
+        assert_eq!(Frame::from_xz(Vec3::ZERO, z), Frame::from_z(z));
+        assert_eq!(Frame::from_xz(2.0 * z, z), Frame::from_z(z));
     }
 }

@@ -199,11 +199,27 @@ impl<'a> Bsdf<'a> {
     }
 
     /// The BSDF of `kind` with the albedos `albedo` (from its textures) on a surface with
-    /// `normals`. `None` when `wo` lies (numerically) in the geometric or the shading plane.
+    /// `normals` and no parameterisation (an anisotropic type's axes then follow
+    /// [`Frame::from_z`]). `None` when `wo` lies (numerically) in the geometric or the shading
+    /// plane.
     pub fn shaded(
         kind: &'a MaterialKind,
         albedo: Albedo,
         normals: Normals,
+        wo: Vec3,
+        mode: TransportMode,
+    ) -> Option<Self> {
+        Bsdf::oriented(kind, albedo, normals, Vec3::ZERO, wo, mode)
+    }
+
+    /// [`Bsdf::shaded`] on a surface whose tangent `dpdu` (its dp/du, any length; zero where
+    /// it has none) orients anisotropic types as pbrt-v4 does: their x axis, `uroughness`'s, is
+    /// `dpdu` made orthogonal to the shading normal ([`Frame::from_xz`]).
+    pub fn oriented(
+        kind: &'a MaterialKind,
+        albedo: Albedo,
+        normals: Normals,
+        dpdu: Vec3,
         wo: Vec3,
         mode: TransportMode,
     ) -> Option<Self> {
@@ -223,7 +239,14 @@ impl<'a> Bsdf<'a> {
         } else {
             ns
         };
-        let frame = Frame::from_z(z);
+        // A rotation of the frame about z changes how the random numbers map to directions:
+        // isotropic types, whose values do not depend on it, keep the frame they always had
+        // (their images unchanged bit for bit), and only anisotropic ones take the tangent.
+        let frame = if bxdf.anisotropic() {
+            Frame::from_xz(dpdu, z)
+        } else {
+            Frame::from_z(z)
+        };
         Some(Bsdf {
             kind,
             bxdf,

@@ -31,6 +31,8 @@ pub struct LightVertex<P> {
     /// Shading normal and texture coordinates, for the BSDF there.
     pub ns: Vec3,
     pub uv: Vec2,
+    /// The surface's tangent, which orients an anisotropic BSDF ([`SurfaceHit::dpdu`]).
+    pub dpdu: Vec3,
     /// Unit direction back towards the previous vertex of the light sub-path.
     pub wo: Vec3,
     pub throughput: Rgb,
@@ -84,9 +86,10 @@ impl<P: PendingMis> LightVertex<P> {
             ng: self.ng,
             ns: self.ns,
         };
-        scene.bsdf(
+        scene.oriented_bsdf(
             self.material,
             normals,
+            self.dpdu,
             self.uv,
             self.wo,
             TransportMode::Importance,

@@ -308,6 +308,11 @@ impl Importer {
                     }
                     geometry.spheres.push(Sphere { center, radius });
                     sphere_materials.push(s.material);
+                    // pbrt's dp/du is the object z axis crossed with the point, which the
+                    // transform turns into its image crossed with the normal, reversed by a
+                    // transform that swaps handedness.
+                    let pole = m.z_axis * m.determinant().signum();
+                    shading.sphere_poles.push(pole.normalize().as_vec3());
                     continue;
                 }
                 ShapeKind::Mesh(source) => match &**source {
