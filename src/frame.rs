@@ -33,7 +33,11 @@ impl Frame {
             return Frame::from_z(z);
         }
         let x = x / len2.sqrt();
-        Frame { x, y: z.cross(x), z }
+        Frame {
+            x,
+            y: z.cross(x),
+            z,
+        }
     }
 
     pub fn to_local(&self, v: Vec3) -> Vec3 {
