@@ -99,6 +99,23 @@ fn triangle_tangent_is_pbrts_dpdu() {
     }
 }
 
+/// pbrt-v4's bilinear patch p00, p10, p01, p11 without uvs: dp/du = (1 - v) (p10 - p00) +
+/// v (p11 - p01), here a parallelogram's constant p10 - p00, in both triangles it is cut into
+/// (up to the sign, which no BSDF sees: a lobe is symmetric about its axes).
+#[test]
+fn bilinear_patch_tangent_is_pbrts_dpdu() {
+    let dir = tempfile::tempdir().unwrap();
+    let body = "Shape \"bilinearmesh\" \"point3 P\" [0 0 0  2 0 0  0.5 0 1.5  2.5 0 1.5]\n";
+    let scene = load_pbrt(dir.path(), body);
+    let expected = DVec3::new(2.0, 0.0, 0.0);
+    // Points near p10 and near p01, one in each triangle.
+    for target in [DVec3::new(1.9, 0.0, 0.1), DVec3::new(0.6, 0.0, 1.4)] {
+        let (_, dpdu) = hit_dpdu(&scene, target + DVec3::new(0.1, 1.0, 0.2), target);
+        let sign = dpdu.as_dvec3().dot(expected).signum();
+        assert_close(&format!("at {target}"), sign as f32 * dpdu, expected);
+    }
+}
+
 /// A shading normal and a tangent that lies half-way between the axes of the frame vmerge
 /// builds without one, where an arbitrary frame would make the highlight round.
 fn oblique_setup() -> (Normals, Vec3) {

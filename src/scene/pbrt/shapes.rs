@@ -441,10 +441,12 @@ fn inline_mesh(p: &ParamList, bilinear: bool) -> Result<PlyMesh, ParseError> {
     };
     // Per-face indices only matter to pbrt's ptex lookups.
     p.mark_used(&["faceIndices"]);
+    // A patch's vertices are p00, p10, p01, p11: each half starts with an edge along pbrt's
+    // u, p10 - p00 and p01 - p11, which pbrt's default uvs of a triangle take for dp/du.
     let triangles = if bilinear {
         indices
             .chunks_exact(4)
-            .flat_map(|q| [[q[0], q[1], q[3]], [q[0], q[3], q[2]]])
+            .flat_map(|q| [[q[0], q[1], q[3]], [q[3], q[2], q[0]]])
             .collect()
     } else {
         indices
