@@ -29,7 +29,8 @@ impl Frame {
     pub fn from_xz(tangent: Vec3, z: Vec3) -> Self {
         let x = tangent - z * z.dot(tangent);
         let len2 = x.length_squared();
-        if !(len2 > 1e-8 * tangent.length_squared()) || !len2.is_finite() {
+        let usable = len2.is_finite() && len2 > 1e-8 * tangent.length_squared();
+        if !usable {
             return Frame::from_z(z);
         }
         let x = x / len2.sqrt();
