@@ -97,6 +97,13 @@ fn triangle_tangent_is_pbrts_dpdu() {
         let (_, dpdu) = hit_dpdu(&scene, DVec3::new(0.4, 2.0, 0.5), DVec3::new(0.5, 0.0, 0.7));
         assert_close(&format!("uv [{uv}]"), dpdu, expected);
     }
+    // Turned to face the other way, the triangle keeps dp/du on its line (the sign no BSDF
+    // sees, as below).
+    let body =
+        format!("ReverseOrientation\nShape \"trianglemesh\" {p} \"integer indices\" [0 1 2]\n");
+    let scene = load_pbrt(dir.path(), &body);
+    let (_, dpdu) = hit_dpdu(&scene, DVec3::new(0.4, 2.0, 0.5), DVec3::new(0.5, 0.0, 0.7));
+    assert_close("turned", -dpdu, DVec3::new(2.0, 0.0, 0.0));
 }
 
 /// pbrt-v4's bilinear patch p00, p10, p01, p11 without uvs: dp/du = (1 - v) (p10 - p00) +

@@ -361,9 +361,8 @@ impl Scene {
 
     /// A triangle's dp/du from its uvs as pbrt-v4's `Triangle::InteractionFromIntersection`
     /// computes it: from pbrt's default uvs (0,0), (1,0), (1,1) where it has none (dp/du =
-    /// p1 - p0 in the order the triangle is stored, the file's unless the importer turned it
-    /// to face its normals), and along the first axis of pbrt's frame around (p2 - p0) x
-    /// (p1 - p0) where the uvs are degenerate.
+    /// p1 - p0, up to its sign where the importer turned the triangle), and along the first
+    /// axis of pbrt's frame around (p2 - p0) x (p1 - p0) where the uvs are degenerate.
     fn triangle_dpdu(&self, triangle: u32) -> Vec3 {
         let [p0, p1, p2] =
             self.geometry.triangles[triangle as usize].map(|k| self.geometry.positions[k as usize]);

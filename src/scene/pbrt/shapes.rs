@@ -521,8 +521,10 @@ fn place_mesh(
                 .into_iter()
                 .sum::<Vec3>()
         };
+        // Turned by swapping the first two vertices: the first edge, along which pbrt's default
+        // uvs put dp/du, stays on its line.
         let t = if front.dot(ng) < 0.0 {
-            [a, c, b]
+            [b, a, c]
         } else {
             [a, b, c]
         };
