@@ -2,6 +2,38 @@
 
 use glam::Vec3;
 
+/// Steps of a full turn in an [`Azimuth`] (2^16: 1e-4 radians each).
+const AZIMUTH_STEPS: f32 = 65536.0;
+
+/// A tangent's direction about a unit normal `n`, as its angle from `Frame::from_z(n).x`
+/// towards `.y` in steps of 1e-4 radians: two bytes (which a stored light vertex has spare)
+/// from which [`Frame::turned`] rebuilds the same frame wherever the surface point is used.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Azimuth(u16);
+
+impl Azimuth {
+    /// The azimuth of `tangent` (any length) about `n`; zero, pbrt-v4's fallback
+    /// `CoordinateSystem(n)`, where it has no component across `n` beyond rounding.
+    pub fn of(tangent: Vec3, n: Vec3) -> Self {
+        if tangent == Vec3::ZERO {
+            return Azimuth(0);
+        }
+        let base = Frame::from_z(n);
+        let (x, y) = (tangent.dot(base.x), tangent.dot(base.y));
+        let across = x * x + y * y;
+        if !(across.is_finite() && across > 1e-8 * tangent.length_squared()) {
+            return Azimuth(0);
+        }
+        let turns = y.atan2(x) / std::f32::consts::TAU;
+        // Negative turns wrap around through i32: the step count is taken modulo 2^16.
+        Azimuth((turns * AZIMUTH_STEPS).round() as i32 as u16)
+    }
+
+    pub fn radians(self) -> f32 {
+        self.0 as f32 * (std::f32::consts::TAU / AZIMUTH_STEPS)
+    }
+}
+
 /// An orthonormal basis with `z` as the "up" axis (a surface normal, a lobe axis).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Frame {
@@ -22,18 +54,13 @@ impl Frame {
         Frame { x, y, z }
     }
 
-    /// A frame around the unit vector `z` whose `x` axis is `tangent` made orthogonal to `z`
-    /// (pbrt-v4's `Frame::FromXZ` after its Gram-Schmidt step), so an anisotropic lobe's
-    /// first axis follows the surface's parameterisation; [`Frame::from_z`] where the tangent
-    /// is zero or (within rounding, where its projection is noise) parallel to `z`.
-    pub fn from_xz(tangent: Vec3, z: Vec3) -> Self {
-        let x = tangent - z * z.dot(tangent);
-        let len2 = x.length_squared();
-        let usable = len2.is_finite() && len2 > 1e-8 * tangent.length_squared();
-        if !usable {
-            return Frame::from_z(z);
-        }
-        let x = x / len2.sqrt();
+    /// A frame around `z`, the unit normal `n` or its opposite, whose `x` axis lies at
+    /// `azimuth` about `n`: pbrt-v4's `Frame::FromXZ` of a tangent made orthogonal to `n`,
+    /// so an anisotropic lobe's first axis follows the surface's parameterisation.
+    pub fn turned(n: Vec3, z: Vec3, azimuth: Azimuth) -> Self {
+        let base = Frame::from_z(n);
+        let (sin, cos) = azimuth.radians().sin_cos();
+        let x = base.x * cos + base.y * sin;
         Frame {
             x,
             y: z.cross(x),
@@ -77,17 +104,28 @@ mod tests {
     }
 
     #[test]
-    fn tangent_frames_follow_the_tangent() {
-        let z = Vec3::new(0.3, -0.8, 0.1).normalize();
-        let tangent = Vec3::new(1.0, 2.0, -0.5);
-        let f = Frame::from_xz(tangent, z);
-        let projected = (tangent - z * z.dot(tangent)).normalize();
-        assert!((f.x - projected).length() < 1e-6);
-        assert!(f.x.cross(f.y).dot(f.z) > 0.999);
-        for (a, b) in [(f.x, f.y), (f.y, f.z), (f.x, f.z)] {
-            assert!(a.dot(b).abs() < 1e-6);
+    fn turned_frames_follow_the_tangent() {
+        let n = Vec3::new(0.3, -0.8, 0.1).normalize();
+        let projected = |t: Vec3| (t - n * n.dot(t)).normalize();
+        for tangent in [
+            Vec3::new(1.0, 2.0, -0.5),
+            Vec3::new(-3.0, 0.1, 0.2),
+            Vec3::new(0.2, 0.1, -4.0),
+        ] {
+            for z in [n, -n] {
+                let f = Frame::turned(n, z, Azimuth::of(tangent, n));
+                // Within the azimuth's step.
+                assert!((f.x - projected(tangent)).length() < 1e-4, "{tangent}");
+                assert_eq!(f.z, z);
+                assert!(f.x.cross(f.y).dot(f.z) > 0.999);
+                for (a, b) in [(f.x, f.y), (f.y, f.z), (f.x, f.z)] {
+                    assert!(a.dot(b).abs() < 1e-6);
+                }
+            }
         }
-        assert_eq!(Frame::from_xz(Vec3::ZERO, z), Frame::from_z(z));
-        assert_eq!(Frame::from_xz(2.0 * z, z), Frame::from_z(z));
+        let base = Frame::from_z(n);
+        assert_eq!(Azimuth::of(Vec3::ZERO, n), Azimuth::default());
+        assert_eq!(Azimuth::of(2.0 * n, n), Azimuth::default());
+        assert!((Frame::turned(n, n, Azimuth::default()).x - base.x).length() < 1e-6);
     }
 }

@@ -10,7 +10,7 @@ use vmerge::accel::{AccelKind, Ray};
 use vmerge::bsdf::microfacet::Roughness;
 use vmerge::bsdf::{Albedo, Bsdf, MaterialKind, Normals, TransportMode};
 use vmerge::color::Rgb;
-use vmerge::frame::Frame;
+use vmerge::frame::{Azimuth, Frame};
 use vmerge::scene::{self, LoadOptions, Scene};
 
 /// A conductor that reflects everything (F = 1 to 4e-8) with roughness `u` and `v`.
@@ -133,23 +133,22 @@ fn oblique_setup() -> (Normals, Vec3) {
 }
 
 /// The oriented BSDF is the canonical one (tangent x, normal z) turned onto the surface: the
-/// axes are pbrt's `Frame::FromXZ(dp/du orthogonalised, ns)`.
+/// axes are pbrt's `Frame::FromXZ(dp/du orthogonalised, ns)`, to the azimuth's 1e-4 radians.
 #[test]
 fn anisotropic_bsdf_is_evaluated_in_the_tangent_frame() {
     let kind = conductor(0.3, 0.08);
     let (normals, tangent) = oblique_setup();
     let ns = normals.ns;
     let x = (tangent - ns * ns.dot(tangent)).normalize();
-    let frame = Frame {
-        x,
-        y: ns.cross(x),
-        z: ns,
-    };
-    let local_wo = Vec3::new(0.3, 0.5, 0.8).normalize();
-    let wo = frame.to_world(local_wo);
+    let wo = (0.3 * x + 0.5 * ns.cross(x) + 0.8 * ns).normalize();
     let albedo = Albedo::of(&kind);
-    let b = Bsdf::oriented(&kind, albedo, normals, tangent, wo, TransportMode::Radiance)
+    let azimuth = Azimuth::of(tangent, ns);
+    let b = Bsdf::oriented(&kind, albedo, normals, azimuth, wo, TransportMode::Radiance)
         .expect("wo off the surface");
+    let frame = *b.frame();
+    assert!((frame.x - x).length() < 1e-4, "x {} vs {x}", frame.x);
+    assert_eq!(frame.z, ns);
+    let local_wo = frame.to_local(wo);
     let canonical = Bsdf::new(&kind, Vec3::Z, local_wo, TransportMode::Radiance).unwrap();
     for i in 0..64 {
         let (c, phi) = ((i as f32 + 0.5) / 64.0, i as f32 * 2.399_963);
@@ -180,7 +179,7 @@ fn anisotropic_highlight_is_stretched_along_the_tangent() {
         &kind,
         Albedo::of(&kind),
         normals,
-        tangent,
+        Azimuth::of(tangent, ns),
         ns,
         TransportMode::Radiance,
     )
@@ -219,7 +218,8 @@ fn isotropic_bsdfs_keep_their_frame() {
         },
     ] {
         let albedo = Albedo::of(&kind);
-        let b = Bsdf::oriented(&kind, albedo, normals, tangent, wo, TransportMode::Radiance);
+        let azimuth = Azimuth::of(tangent, normals.ns);
+        let b = Bsdf::oriented(&kind, albedo, normals, azimuth, wo, TransportMode::Radiance);
         assert_eq!(*b.unwrap().frame(), Frame::from_z(normals.ns));
     }
 }

@@ -39,7 +39,7 @@
 //!   offset along `ng` to the side its direction goes (`Ray::spawn`).
 
 use crate::color::Rgb;
-use crate::frame::Frame;
+use crate::frame::{Azimuth, Frame};
 use glam::Vec3;
 
 mod bxdf;
@@ -199,8 +199,8 @@ impl<'a> Bsdf<'a> {
     }
 
     /// The BSDF of `kind` with the albedos `albedo` (from its textures) on a surface with
-    /// `normals` and no parameterisation (an anisotropic type's axes then follow
-    /// [`Frame::from_z`]). `None` when `wo` lies (numerically) in the geometric or the shading
+    /// `normals` and no parameterisation (an anisotropic type's x axis is then that of
+    /// `Frame::from_z(ns)`). `None` when `wo` lies (numerically) in the geometric or the shading
     /// plane.
     pub fn shaded(
         kind: &'a MaterialKind,
@@ -209,17 +209,17 @@ impl<'a> Bsdf<'a> {
         wo: Vec3,
         mode: TransportMode,
     ) -> Option<Self> {
-        Bsdf::oriented(kind, albedo, normals, Vec3::ZERO, wo, mode)
+        Bsdf::oriented(kind, albedo, normals, Azimuth::default(), wo, mode)
     }
 
-    /// [`Bsdf::shaded`] on a surface whose tangent `dpdu` (its dp/du, any length; zero where
-    /// it has none) orients anisotropic types as pbrt-v4 does: their x axis, `uroughness`'s, is
-    /// `dpdu` made orthogonal to the shading normal ([`Frame::from_xz`]).
+    /// [`Bsdf::shaded`] on a surface whose tangent, at `azimuth` about the shading normal (the
+    /// surface's dp/du made orthogonal to it: [`Azimuth::of`]), orients anisotropic types as
+    /// pbrt-v4 does: their x axis, `uroughness`'s, is the tangent ([`Frame::turned`]).
     pub fn oriented(
         kind: &'a MaterialKind,
         albedo: Albedo,
         normals: Normals,
-        dpdu: Vec3,
+        azimuth: Azimuth,
         wo: Vec3,
         mode: TransportMode,
     ) -> Option<Self> {
@@ -243,7 +243,7 @@ impl<'a> Bsdf<'a> {
         // isotropic types, whose values do not depend on it, keep the frame they always had
         // (their images unchanged bit for bit), and only anisotropic ones take the tangent.
         let frame = if bxdf.anisotropic() {
-            Frame::from_xz(dpdu, z)
+            Frame::turned(ns, z, azimuth)
         } else {
             Frame::from_z(z)
         };

@@ -5,7 +5,7 @@
 
 use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, PACKET};
 use crate::bsdf::{Albedo, Bsdf, Material, Normals, TransportMode};
-use crate::frame::Frame;
+use crate::frame::{Azimuth, Frame};
 use crate::light::{EnvMapDesc, Lights, SceneBounds, SkyDesc};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
@@ -101,8 +101,8 @@ pub struct SurfaceHit {
     pub ns: Vec3,
     /// Texture coordinates (zero where the mesh has none or the material has no texture).
     pub uv: Vec2,
-    /// The surface's dp/du (unnormalised, as pbrt-v4's), which orients anisotropic materials;
-    /// zero where the material is isotropic, which ignores it.
+    /// The surface's dp/du (unnormalised, as pbrt-v4's), which orients anisotropic materials
+    /// ([`SurfaceHit::azimuth`]); zero where the material is isotropic, which ignores it.
     pub dpdu: Vec3,
     pub material: u32,
     /// Index into `Scene::lights` when the primitive emits.
@@ -110,6 +110,12 @@ pub struct SurfaceHit {
 }
 
 impl SurfaceHit {
+    /// The direction of dp/du about the shading normal, which orients an anisotropic BSDF:
+    /// what a light vertex keeps of it, so that every BSDF built here has the same frame.
+    pub fn azimuth(&self) -> Azimuth {
+        Azimuth::of(self.dpdu, self.ns)
+    }
+
     pub fn normals(&self) -> Normals {
         Normals {
             ng: self.ng,
@@ -447,24 +453,24 @@ impl Scene {
         Bsdf::shaded(kind, self.albedo(material, uv), normals, wo, mode)
     }
 
-    /// [`Scene::bsdf`] on a surface with the tangent `dpdu` (zero where it has none), which
-    /// orients anisotropic materials ([`Bsdf::oriented`]).
+    /// [`Scene::bsdf`] on a surface whose tangent lies at `azimuth` about the shading normal,
+    /// which orients anisotropic materials ([`Bsdf::oriented`]).
     pub fn oriented_bsdf(
         &self,
         material: u32,
         normals: Normals,
-        dpdu: Vec3,
+        azimuth: Azimuth,
         uv: Vec2,
         wo: Vec3,
         mode: TransportMode,
     ) -> Option<Bsdf<'_>> {
         let kind = &self.material(material).kind;
-        Bsdf::oriented(kind, self.albedo(material, uv), normals, dpdu, wo, mode)
+        Bsdf::oriented(kind, self.albedo(material, uv), normals, azimuth, wo, mode)
     }
 
     /// The BSDF at a hit, oriented by its tangent.
     pub fn bsdf_at(&self, hit: &SurfaceHit, wo: Vec3, mode: TransportMode) -> Option<Bsdf<'_>> {
-        self.oriented_bsdf(hit.material, hit.normals(), hit.dpdu, hit.uv, wo, mode)
+        self.oriented_bsdf(hit.material, hit.normals(), hit.azimuth(), hit.uv, wo, mode)
     }
 
     pub fn occluded(&self, ray: &Ray) -> bool {
