@@ -33,6 +33,9 @@
 //!   correction |wo.ng| |wi.ns| / (|wo.ns| |wi.ng|) relative to using the shading cosine.
 //!   The pdfs are those of the shading-frame lobes, the same in both modes, so forward and
 //!   reverse pdfs of the two sides of a vertex still match.
+//! - Anisotropic types (roughness differing along the two tangent axes) are evaluated in
+//!   pbrt-v4's frame: x along the surface's dp/du made orthogonal to `ns` ([`Bsdf::oriented`]);
+//!   isotropic ones in `Frame::from_z`, whose turn about the normal they do not see.
 //! - Light leaks where `ns` and `ng` disagree are treated as pbrt-v4 treats them: not at all
 //!   in the BSDF. Reflection and transmission are told apart by the shading hemisphere alone
 //!   (no test against the geometric normal, which pbrt-v3 had), and a new ray's origin is
