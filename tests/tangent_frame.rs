@@ -1,6 +1,7 @@
 //! The tangent frame of anisotropic BSDFs, as pbrt-v4 builds it: the hit carries the surface's
-//! dp/du (a sphere's along its parallels about the object z axis, through its transform; a
-//! triangle's from its uvs, pbrt's default uvs where it has none), the BSDF puts `uroughness`
+//! dp/du (a sphere's along its parallels about the object z axis, through its transform, or
+//! about -y for a TOML sphere, as its texture coordinates run; a triangle's from its uvs,
+//! pbrt's default uvs where it has none; a bilinear patch's), the BSDF puts `uroughness`
 //! along it (x = dp/du made orthogonal to the shading normal), so the highlight of a surface
 //! rougher along u is stretched along dp/du; isotropic materials keep their old frame.
 
@@ -76,6 +77,30 @@ fn sphere_tangent_is_pbrts_dpdu() {
                 m.transform_vector3(std::f64::consts::TAU * DVec3::new(-po.y, po.x, 0.0));
             assert_close(&format!("mirror {mirror}, from {from}"), dpdu, expected);
         }
+    }
+}
+
+/// A sphere of a TOML scene: dp/du of its own texture coordinates, u = 1/2 + atan2(n.x, -n.z)
+/// / (2 pi) about the y axis, which is 2 pi r (-n.z, 0, n.x) at the outward normal n.
+#[test]
+fn toml_sphere_tangent_follows_its_texture_coordinates() {
+    let path = format!(
+        "{}/scenes/microfacets/scene.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let options = LoadOptions {
+        accel: AccelKind::Bvh,
+        lenient: false,
+        shading_normals: true,
+    };
+    let scene = scene::load(path.as_ref(), &options).unwrap_or_else(|e| panic!("{e}"));
+    // The anisotropic aluminium sphere.
+    let (center, radius) = (DVec3::new(-0.45, 0.38, -0.35), 0.38);
+    for from in [DVec3::new(0.0, 1.0, 3.4), DVec3::new(-0.95, 0.9, 0.4)] {
+        let (p, dpdu) = hit_dpdu(&scene, from, center);
+        let n = (p.as_dvec3() - center) / radius;
+        let expected = std::f64::consts::TAU * radius * DVec3::new(-n.z, 0.0, n.x);
+        assert_close(&format!("from {from}"), dpdu, expected);
     }
 }
 
