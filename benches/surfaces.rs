@@ -47,6 +47,7 @@ fn vertex_normals(parts: &scene::SceneParts) -> MeshShading {
             .collect(),
         triangle_normals: g.triangles.clone(),
         triangle_uvs: g.triangles.clone(),
+        sphere_poles: Vec::new(),
     }
 }
 

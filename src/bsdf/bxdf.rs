@@ -43,6 +43,12 @@ pub trait Bxdf {
     /// Every lobe is a delta: no connection or merge can use it.
     fn is_delta(&self) -> bool;
 
+    /// Its lobes change with the azimuth about the normal (roughness differing along the two
+    /// axes): only then does the frame's first tangent matter.
+    fn anisotropic(&self) -> bool {
+        false
+    }
+
     /// The local frame flips to the side of `wo` (otherwise the normal's orientation tells
     /// entering from leaving).
     fn two_sided(&self) -> bool {

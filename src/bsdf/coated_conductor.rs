@@ -238,6 +238,11 @@ impl Bxdf for CoatedConductor {
         self.coating.is_smooth() && self.base_is_smooth()
     }
 
+    fn anisotropic(&self) -> bool {
+        let r = [self.roughness, self.coating.roughness];
+        r.iter().any(|r| r.u != r.v)
+    }
+
     #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3, _: TransportMode) -> BsdfEval {
         if wi.z <= 0.0 || wo.z <= 0.0 {

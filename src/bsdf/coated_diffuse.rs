@@ -168,6 +168,10 @@ impl Bxdf for CoatedDiffuse {
         false
     }
 
+    fn anisotropic(&self) -> bool {
+        self.coating.roughness.u != self.coating.roughness.v
+    }
+
     #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3, _: TransportMode) -> BsdfEval {
         if wi.z <= 0.0 || wo.z <= 0.0 {

@@ -139,6 +139,10 @@ impl Bxdf for Conductor {
         self.roughness.distribution().effectively_smooth()
     }
 
+    fn anisotropic(&self) -> bool {
+        self.roughness.u != self.roughness.v
+    }
+
     #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3, _: TransportMode) -> BsdfEval {
         let m = self.roughness.distribution();

@@ -161,6 +161,10 @@ impl Bxdf for Dielectric {
         false
     }
 
+    fn anisotropic(&self) -> bool {
+        self.roughness.u != self.roughness.v
+    }
+
     #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3, mode: TransportMode) -> BsdfEval {
         let m = self.roughness.distribution();

@@ -33,13 +33,16 @@
 //!   correction |wo.ng| |wi.ns| / (|wo.ns| |wi.ng|) relative to using the shading cosine.
 //!   The pdfs are those of the shading-frame lobes, the same in both modes, so forward and
 //!   reverse pdfs of the two sides of a vertex still match.
+//! - Anisotropic types (roughness differing along the two tangent axes) are evaluated in
+//!   pbrt-v4's frame: x along the surface's dp/du made orthogonal to `ns` ([`Bsdf::oriented`]);
+//!   isotropic ones in `Frame::from_z`, whose turn about the normal they do not see.
 //! - Light leaks where `ns` and `ng` disagree are treated as pbrt-v4 treats them: not at all
 //!   in the BSDF. Reflection and transmission are told apart by the shading hemisphere alone
 //!   (no test against the geometric normal, which pbrt-v3 had), and a new ray's origin is
 //!   offset along `ng` to the side its direction goes (`Ray::spawn`).
 
 use crate::color::Rgb;
-use crate::frame::Frame;
+use crate::frame::{Azimuth, Frame};
 use glam::Vec3;
 
 mod bxdf;
@@ -201,11 +204,27 @@ impl<'a> Bsdf<'a> {
     }
 
     /// The BSDF of `kind` with the albedos `albedo` (from its textures) on a surface with
-    /// `normals`. `None` when `wo` lies (numerically) in the geometric or the shading plane.
+    /// `normals` and no parameterisation (an anisotropic type's x axis is then that of
+    /// `Frame::from_z(ns)`). `None` when `wo` lies (numerically) in the geometric or the shading
+    /// plane.
     pub fn shaded(
         kind: &'a MaterialKind,
         albedo: Albedo,
         normals: Normals,
+        wo: Vec3,
+        mode: TransportMode,
+    ) -> Option<Self> {
+        Bsdf::oriented(kind, albedo, normals, Azimuth::default(), wo, mode)
+    }
+
+    /// [`Bsdf::shaded`] on a surface whose tangent, at `azimuth` about the shading normal (the
+    /// surface's dp/du made orthogonal to it: [`Azimuth::of`]), orients anisotropic types as
+    /// pbrt-v4 does: their x axis, `uroughness`'s, is the tangent ([`Frame::turned`]).
+    pub fn oriented(
+        kind: &'a MaterialKind,
+        albedo: Albedo,
+        normals: Normals,
+        azimuth: Azimuth,
         wo: Vec3,
         mode: TransportMode,
     ) -> Option<Self> {
@@ -225,7 +244,14 @@ impl<'a> Bsdf<'a> {
         } else {
             ns
         };
-        let frame = Frame::from_z(z);
+        // A rotation of the frame about z changes how the random numbers map to directions:
+        // isotropic types, whose values do not depend on it, keep the frame they always had
+        // (their images unchanged bit for bit), and only anisotropic ones take the tangent.
+        let frame = if bxdf.anisotropic() {
+            Frame::turned(ns, z, azimuth)
+        } else {
+            Frame::from_z(z)
+        };
         Some(Bsdf {
             kind,
             bxdf,

@@ -115,6 +115,13 @@ macro_rules! registry {
             }
 
             #[inline]
+            fn anisotropic(&self) -> bool {
+                match *self {
+                    $(MaterialKind::$ty { $($field),* } => $ty { $($field),* }.anisotropic(),)*
+                }
+            }
+
+            #[inline]
             fn two_sided(&self) -> bool {
                 match *self {
                     $(MaterialKind::$ty { $($field),* } => $ty { $($field),* }.two_sided(),)*
@@ -204,6 +211,12 @@ impl super::MaterialKind {
             albedo.kd = clamp(kd, self.kd_limit(albedo.ks));
         }
         albedo
+    }
+
+    /// Its roughness differs along the two tangent axes: the BSDF needs the surface's tangent
+    /// (see [`super::Bsdf::oriented`]).
+    pub fn is_anisotropic(&self) -> bool {
+        Bxdf::anisotropic(self)
     }
 
     /// Mirror and glass scatter only into delta directions.

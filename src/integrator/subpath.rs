@@ -9,6 +9,7 @@ use crate::accel::Ray;
 use crate::bsdf::{Bsdf, Normals, TransportMode};
 use crate::color::Rgb;
 use crate::film::{add_splats, Splats};
+use crate::frame::Azimuth;
 use crate::scene::{Scene, SurfaceHit};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
@@ -31,6 +32,9 @@ pub struct LightVertex<P> {
     /// Shading normal and texture coordinates, for the BSDF there.
     pub ns: Vec3,
     pub uv: Vec2,
+    /// The direction of the surface's tangent, which orients an anisotropic BSDF
+    /// ([`SurfaceHit::azimuth`]).
+    pub azimuth: Azimuth,
     /// Unit direction back towards the previous vertex of the light sub-path.
     pub wo: Vec3,
     pub throughput: Rgb,
@@ -84,9 +88,10 @@ impl<P: PendingMis> LightVertex<P> {
             ng: self.ng,
             ns: self.ns,
         };
-        scene.bsdf(
+        scene.oriented_bsdf(
             self.material,
             normals,
+            self.azimuth,
             self.uv,
             self.wo,
             TransportMode::Importance,

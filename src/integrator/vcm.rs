@@ -374,6 +374,7 @@ impl<'a> VertexCm<'a> {
                         ng: hit.ng,
                         ns: hit.ns,
                         uv: hit.uv,
+                        azimuth: hit.azimuth(),
                         wo: -dir,
                         throughput: state.throughput,
                         material: hit.material,

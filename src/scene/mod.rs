@@ -5,6 +5,7 @@
 
 use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, PACKET};
 use crate::bsdf::{Albedo, Bsdf, Material, Normals, TransportMode};
+use crate::frame::{Azimuth, Frame};
 use crate::light::{EnvMapDesc, Lights, SceneBounds, SkyDesc};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
@@ -34,10 +35,15 @@ pub const MAX_COORDINATE: f32 = 1e8;
 
 /// Per-vertex shading data of the triangles: normals and uvs with their own index triples
 /// (OBJ indexes them apart from positions). A list is empty when no triangle has that data.
+/// And the spheres' parameterisation, which orients anisotropic materials on them.
 #[derive(Clone, Debug, Default)]
 pub struct MeshShading {
     pub normals: Vec<Vec3>,
     pub uvs: Vec<Vec2>,
+    /// Per sphere, the unit axis its longitude u turns about (right-handed), so that dp/du is
+    /// `pole x n` at the outward normal n: pbrt's object z axis in world space. Empty for
+    /// spheres whose u runs as the scene file's texture coordinates (`sphere_uv`: about -y).
+    pub sphere_poles: Vec<Vec3>,
     /// Per triangle, indices into `normals`, or [`MeshShading::NONE`] for a flat triangle.
     pub triangle_normals: Vec<[u32; 3]>,
     /// Per triangle, indices into `uvs`, or [`MeshShading::NONE`].
@@ -49,7 +55,7 @@ impl MeshShading {
 
     /// Bytes held.
     pub fn bytes(&self) -> usize {
-        self.normals.len() * 12
+        (self.normals.len() + self.sphere_poles.len()) * 12
             + self.uvs.len() * 8
             + (self.triangle_normals.len() + self.triangle_uvs.len()) * 12
     }
@@ -95,12 +101,21 @@ pub struct SurfaceHit {
     pub ns: Vec3,
     /// Texture coordinates (zero where the mesh has none or the material has no texture).
     pub uv: Vec2,
+    /// The surface's dp/du (unnormalised, as pbrt-v4's), which orients anisotropic materials
+    /// ([`SurfaceHit::azimuth`]); zero where the material is isotropic, which ignores it.
+    pub dpdu: Vec3,
     pub material: u32,
     /// Index into `Scene::lights` when the primitive emits.
     pub light: Option<u32>,
 }
 
 impl SurfaceHit {
+    /// The direction of dp/du about the shading normal, which orients an anisotropic BSDF:
+    /// what a light vertex keeps of it, so that every BSDF built here has the same frame.
+    pub fn azimuth(&self) -> Azimuth {
+        Azimuth::of(self.dpdu, self.ns)
+    }
+
     pub fn normals(&self) -> Normals {
         Normals {
             ng: self.ng,
@@ -287,7 +302,9 @@ impl Scene {
         // cache misses per hit).
         let textured =
             |material: u32| self.material_textures[material as usize] != Default::default();
-        let (material, light, ns, uv) = match hit.primitive {
+        // Likewise only anisotropic materials read the tangent.
+        let anisotropic = |material: u32| self.material(material).kind.is_anisotropic();
+        let (material, light, ns, uv, dpdu) = match hit.primitive {
             Primitive::Triangle(i) => {
                 let material = self.resolve(self.triangle_materials[i as usize], &hit);
                 let uv = if textured(material) {
@@ -295,11 +312,17 @@ impl Scene {
                 } else {
                     Vec2::ZERO
                 };
+                let dpdu = if anisotropic(material) {
+                    self.triangle_dpdu(i)
+                } else {
+                    Vec3::ZERO
+                };
                 (
                     material,
                     self.lights.triangle_light(i),
                     self.triangle_shading_normal(i, &hit, ng),
                     uv,
+                    dpdu,
                 )
             }
             Primitive::Sphere(i) => {
@@ -309,7 +332,12 @@ impl Scene {
                 } else {
                     Vec2::ZERO
                 };
-                (material, self.lights.sphere_light(i), ng, uv)
+                let dpdu = if anisotropic(material) {
+                    self.sphere_dpdu(i, ng)
+                } else {
+                    Vec3::ZERO
+                };
+                (material, self.lights.sphere_light(i), ng, uv, dpdu)
             }
         };
         SurfaceHit {
@@ -318,9 +346,49 @@ impl Scene {
             ng,
             ns,
             uv,
+            dpdu,
             material,
             light,
         }
+    }
+
+    /// A sphere's dp/du at the outward normal `n` (zero at its poles), in the direction pbrt-v4's
+    /// (-phimax y, phimax x, 0) takes in object space, scaled to the sphere's size.
+    fn sphere_dpdu(&self, sphere: u32, n: Vec3) -> Vec3 {
+        let pole = self
+            .shading
+            .sphere_poles
+            .get(sphere as usize)
+            .copied()
+            .unwrap_or(-Vec3::Y);
+        let radius = self.geometry.spheres[sphere as usize].radius;
+        std::f32::consts::TAU * radius * pole.cross(n)
+    }
+
+    /// A triangle's dp/du from its uvs as pbrt-v4's `Triangle::InteractionFromIntersection`
+    /// computes it: from pbrt's default uvs (0,0), (1,0), (1,1) where it has none (dp/du =
+    /// p1 - p0, up to its sign where the importer turned the triangle), and along the first
+    /// axis of pbrt's frame around (p2 - p0) x (p1 - p0) where the uvs are degenerate.
+    fn triangle_dpdu(&self, triangle: u32) -> Vec3 {
+        let [p0, p1, p2] =
+            self.geometry.triangles[triangle as usize].map(|k| self.geometry.positions[k as usize]);
+        let [uv0, uv1, uv2] = match self.shading.triangle_uvs.get(triangle as usize) {
+            Some(&indices) if indices != MeshShading::NONE => {
+                indices.map(|k| self.shading.uvs[k as usize])
+            }
+            _ => [Vec2::ZERO, Vec2::X, Vec2::ONE],
+        };
+        let (duv02, duv12) = (uv0 - uv2, uv1 - uv2);
+        let (dp02, dp12) = (p0 - p2, p1 - p2);
+        let determinant = duv02.x * duv12.y - duv02.y * duv12.x;
+        if determinant.abs() >= 1e-9 {
+            let dpdu = (duv12.y * dp02 - duv02.y * dp12) / determinant;
+            let dpdv = (duv02.x * dp12 - duv12.x * dp02) / determinant;
+            if dpdu.cross(dpdv).length_squared() > 0.0 && dpdu.is_finite() {
+                return dpdu;
+            }
+        }
+        Frame::from_z((p2 - p0).cross(p1 - p0).normalize_or_zero()).x
     }
 
     /// The interpolated vertex normal, turned to the side of `ng`; `ng` itself for a flat
@@ -372,7 +440,7 @@ impl Scene {
     }
 
     /// The BSDF of `material` at a surface point with `normals` and texture coordinates `uv`,
-    /// seen from `wo`: what the integrators scatter with.
+    /// seen from `wo`, on a surface without a tangent ([`Scene::oriented_bsdf`] with one).
     pub fn bsdf(
         &self,
         material: u32,
@@ -385,9 +453,24 @@ impl Scene {
         Bsdf::shaded(kind, self.albedo(material, uv), normals, wo, mode)
     }
 
-    /// [`Scene::bsdf`] at a hit.
+    /// [`Scene::bsdf`] on a surface whose tangent lies at `azimuth` about the shading normal,
+    /// which orients anisotropic materials ([`Bsdf::oriented`]).
+    pub fn oriented_bsdf(
+        &self,
+        material: u32,
+        normals: Normals,
+        azimuth: Azimuth,
+        uv: Vec2,
+        wo: Vec3,
+        mode: TransportMode,
+    ) -> Option<Bsdf<'_>> {
+        let kind = &self.material(material).kind;
+        Bsdf::oriented(kind, self.albedo(material, uv), normals, azimuth, wo, mode)
+    }
+
+    /// The BSDF at a hit, oriented by its tangent.
     pub fn bsdf_at(&self, hit: &SurfaceHit, wo: Vec3, mode: TransportMode) -> Option<Bsdf<'_>> {
-        self.bsdf(hit.material, hit.normals(), hit.uv, wo, mode)
+        self.oriented_bsdf(hit.material, hit.normals(), hit.azimuth(), hit.uv, wo, mode)
     }
 
     pub fn occluded(&self, ray: &Ray) -> bool {

@@ -308,6 +308,11 @@ impl Importer {
                     }
                     geometry.spheres.push(Sphere { center, radius });
                     sphere_materials.push(s.material);
+                    // pbrt's dp/du is the object z axis crossed with the point, which the
+                    // transform turns into its image crossed with the normal, reversed by a
+                    // transform that swaps handedness.
+                    let pole = m.z_axis * m.determinant().signum();
+                    shading.sphere_poles.push(pole.normalize().as_vec3());
                     continue;
                 }
                 ShapeKind::Mesh(source) => match &**source {
@@ -436,10 +441,12 @@ fn inline_mesh(p: &ParamList, bilinear: bool) -> Result<PlyMesh, ParseError> {
     };
     // Per-face indices only matter to pbrt's ptex lookups.
     p.mark_used(&["faceIndices"]);
+    // A patch's vertices are p00, p10, p01, p11: each half starts with an edge along pbrt's
+    // u, p10 - p00 and p01 - p11, which pbrt's default uvs of a triangle take for dp/du.
     let triangles = if bilinear {
         indices
             .chunks_exact(4)
-            .flat_map(|q| [[q[0], q[1], q[3]], [q[0], q[3], q[2]]])
+            .flat_map(|q| [[q[0], q[1], q[3]], [q[3], q[2], q[0]]])
             .collect()
     } else {
         indices
@@ -514,8 +521,10 @@ fn place_mesh(
                 .into_iter()
                 .sum::<Vec3>()
         };
+        // Turned by swapping the first two vertices: the first edge, along which pbrt's default
+        // uvs put dp/du, stays on its line.
         let t = if front.dot(ng) < 0.0 {
-            [a, c, b]
+            [b, a, c]
         } else {
             [a, b, c]
         };
