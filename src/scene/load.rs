@@ -423,8 +423,15 @@ impl Loader {
                 &dir,
                 &table.roughness_texture,
             )?;
-            self.builder
-                .set_textures(index, MaterialTextures { kd, ks, roughness });
+            self.builder.set_textures(
+                index,
+                MaterialTextures {
+                    kd,
+                    ks,
+                    roughness,
+                    vroughness: None,
+                },
+            );
         }
         self.mixes(&file.material)?;
         for (i, mesh) in file.mesh.iter().enumerate() {
@@ -1147,6 +1154,7 @@ impl Loader {
                 kd,
                 ks,
                 roughness: None,
+                vroughness: None,
             },
         );
         Ok(index)
