@@ -3,6 +3,7 @@
 //! diffuse transmitter's transmittance and a mix's amount reaches the BSDF at each point. The
 //! BSDF at a texel's centre is the one the importer builds for that texel's value given as a
 //! constant, and a mix picks its second material at the rate its amount texture gives there.
+//! The TOML format's roughness textures of one axis each do the same.
 
 use glam::{Vec2, Vec3};
 use std::path::Path;
@@ -271,4 +272,64 @@ NamedMaterial "m""#,
             "u from {u0}: second material at rate {rate}, expected {expected}"
         );
     }
+}
+
+/// The material "m" of a TOML scene of one sphere whose `[material.m]` table has `keys`.
+fn toml_material(dir: &Path, keys: &str) -> (Scene, u32) {
+    let text = format!(
+        "[render]\nresolution = [8, 8]\n\
+         [[camera]]\nposition = [0.0, 0.0, 3.0]\nlook_at = [0.0, 0.0, 0.0]\n\
+         up = [0.0, 1.0, 0.0]\nfov = 30.0\n\
+         [[light]]\ntype = \"point\"\nposition = [0.0, 0.0, 3.0]\nintensity = [1.0, 1.0, 1.0]\n\
+         [[sphere]]\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"m\"\n\
+         [material.m]\ntype = \"conductor\"\n{keys}\n"
+    );
+    let path = dir.join("scene.toml");
+    std::fs::write(&path, text).unwrap();
+    let options = LoadOptions {
+        accel: AccelKind::default_kind(),
+        lenient: false,
+        shading_normals: true,
+    };
+    let scene = scene::load(&path, &options).unwrap_or_else(|e| panic!("{e}"));
+    let m = scene.materials.iter().position(|m| m.name == "m").unwrap() as u32;
+    (scene, m)
+}
+
+/// `uroughness_texture` and `vroughness_texture` replace one axis each, the other axis keeping
+/// its number.
+#[test]
+fn toml_roughness_textures_of_one_axis_each() {
+    let dir = tempfile::tempdir().unwrap();
+    halves(dir.path(), "u.pfm", 0.05, 0.4);
+    halves(dir.path(), "v.pfm", 0.3, 0.02);
+    let at = |keys: &str, uv: Vec2| {
+        let (scene, m) = toml_material(dir.path(), keys);
+        scene.materials[m as usize]
+            .kind
+            .with_albedo(scene.albedo(m, uv))
+    };
+    let constant = |keys: &str| {
+        let (scene, m) = toml_material(dir.path(), keys);
+        scene.materials[m as usize].kind.clone()
+    };
+    let u_only = "uroughness_texture = \"u.pfm\"\nvroughness = 0.2";
+    assert_eq!(
+        at(u_only, LEFT),
+        constant("uroughness = 0.05\nvroughness = 0.2")
+    );
+    assert_eq!(
+        at(u_only, RIGHT),
+        constant("uroughness = 0.4\nvroughness = 0.2")
+    );
+    let v_only = "uroughness = 0.2\nvroughness_texture = \"v.pfm\"";
+    assert_eq!(
+        at(v_only, LEFT),
+        constant("uroughness = 0.2\nvroughness = 0.3")
+    );
+    let both = "uroughness_texture = \"u.pfm\"\nvroughness_texture = \"v.pfm\"";
+    assert_eq!(
+        at(both, RIGHT),
+        constant("uroughness = 0.4\nvroughness = 0.02")
+    );
 }
