@@ -3,7 +3,8 @@
 //! diffuse transmitter's transmittance and a mix's amount reaches the BSDF at each point. The
 //! BSDF at a texel's centre is the one the importer builds for that texel's value given as a
 //! constant, and a mix picks its second material at the rate its amount texture gives there.
-//! The TOML format's roughness textures of one axis each do the same.
+//! The TOML format's roughness textures of one axis each do the same, and a material's
+//! textures stay its own after an emitting mix (which adds three materials at once).
 
 use glam::{Vec2, Vec3};
 use std::path::Path;
@@ -331,5 +332,30 @@ fn toml_roughness_textures_of_one_axis_each() {
     assert_eq!(
         at(both, RIGHT),
         constant("uroughness = 0.4\nvroughness = 0.02")
+    );
+}
+
+/// An emitting mix adds variants of its two materials before its own: a textured material
+/// defined after it still gets its own texture.
+#[test]
+fn textures_stay_with_their_material_after_an_emitting_mix() {
+    let dir = tempfile::tempdir().unwrap();
+    halves(dir.path(), "r.pfm", 0.05, 0.4);
+    let scene = quad(
+        dir.path(),
+        r#"Texture "r" "float" "imagemap" "string filename" "r.pfm"
+MakeNamedMaterial "c" "string type" "diffuse"
+MakeNamedMaterial "d" "string type" "conductor"
+MakeNamedMaterial "m" "string type" "mix" "string materials" ["c" "d"]
+AttributeBegin
+AreaLightSource "diffuse" "rgb L" [1 1 1]
+NamedMaterial "m"
+Shape "sphere" "float radius" 0.1
+AttributeEnd"#,
+        r#"Material "conductor" "texture roughness" "r""#,
+    );
+    assert_eq!(
+        kind_at(&scene, RIGHT),
+        constant(r#"Material "conductor" "float roughness" 0.4"#)
     );
 }
