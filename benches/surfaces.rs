@@ -101,6 +101,7 @@ fn variant(path: &Path, normals: bool, texture_size: u32, kind: Option<&Material
                 kd: Some(i),
                 ks: None,
                 roughness: None,
+                vroughness: None,
             })
             .collect();
     }

@@ -866,6 +866,7 @@ fn the_bound_depends_on_the_lobe_shape_only() {
                     kd: Rgb::splat(kd),
                     ks: Rgb::splat(ks),
                     roughness: None,
+                    vroughness: None,
                 };
                 let b = Bsdf::shaded(kind, albedo, normals, wo, TransportMode::Importance).unwrap();
                 let bound = AngularBound::new(Vec3::ZERO, Vec3::Z, &b, target, 0.05).unwrap();

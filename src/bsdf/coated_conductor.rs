@@ -218,18 +218,23 @@ impl Bxdf for CoatedConductor {
             kd: self.reflectance,
             ks: Rgb::BLACK,
             roughness: None,
+            vroughness: None,
         }
     }
 
     /// A texture replaces the reflectance only of a conductor given by one (a black texel
-    /// stays a reflectance, not a switch to `eta` and `k`).
+    /// stays a reflectance, not a switch to `eta` and `k`); roughness textures are the
+    /// conductor's (the coating's tables are built once per material).
     fn with_albedo(&self, albedo: Albedo) -> Self {
-        if self.reflectance.is_black() {
-            return *self;
-        }
-        let r = albedo.kd;
+        let reflectance = if self.reflectance.is_black() {
+            self.reflectance
+        } else {
+            let r = albedo.kd;
+            Rgb::new(r.r.max(1e-6), r.g.max(1e-6), r.b.max(1e-6))
+        };
         CoatedConductor {
-            reflectance: Rgb::new(r.r.max(1e-6), r.g.max(1e-6), r.b.max(1e-6)),
+            reflectance,
+            roughness: albedo.roughness_of(self.roughness),
             ..*self
         }
     }

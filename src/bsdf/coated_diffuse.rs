@@ -154,6 +154,7 @@ impl Bxdf for CoatedDiffuse {
             kd: self.r,
             ks: Rgb::BLACK,
             roughness: None,
+            vroughness: None,
         }
     }
 

@@ -130,7 +130,7 @@ impl Bxdf for Conductor {
 
     fn with_albedo(&self, albedo: Albedo) -> Self {
         Conductor {
-            roughness: self.roughness.textured(albedo.roughness),
+            roughness: albedo.roughness_of(self.roughness),
             ..*self
         }
     }

@@ -148,7 +148,7 @@ impl Bxdf for Dielectric {
 
     fn with_albedo(&self, albedo: Albedo) -> Self {
         Dielectric {
-            roughness: self.roughness.textured(albedo.roughness),
+            roughness: albedo.roughness_of(self.roughness),
             ..*self
         }
     }

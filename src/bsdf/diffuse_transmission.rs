@@ -73,6 +73,7 @@ impl Bxdf for DiffuseTransmission {
             kd: self.r,
             ks: self.t,
             roughness: None,
+            vroughness: None,
         }
     }
 

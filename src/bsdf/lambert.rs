@@ -44,6 +44,7 @@ impl Bxdf for Lambert {
             kd: self.kd,
             ks: Rgb::BLACK,
             roughness: None,
+            vroughness: None,
         }
     }
 

@@ -42,6 +42,7 @@ impl Bxdf for Mirror {
             kd: Rgb::BLACK,
             ks: self.ks,
             roughness: None,
+            vroughness: None,
         }
     }
 

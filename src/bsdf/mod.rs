@@ -143,6 +143,9 @@ pub struct Albedo {
     /// own units: remapped to alpha when its `remaproughness` says so); `None` keeps the
     /// type's own.
     pub roughness: Option<f32>,
+    /// The v axis's roughness where a texture of its own gives it (pbrt's `vroughness`):
+    /// `roughness` then sets the u axis alone.
+    pub vroughness: Option<f32>,
 }
 
 impl Albedo {
@@ -151,11 +154,21 @@ impl Albedo {
         kd: Rgb::BLACK,
         ks: Rgb::BLACK,
         roughness: None,
+        vroughness: None,
     };
 
     /// The constant colours of `kind`.
     pub fn of(kind: &MaterialKind) -> Self {
         kind.albedo()
+    }
+
+    /// `roughness` with the axes its textures give here replaced.
+    pub fn roughness_of(&self, roughness: Roughness) -> Roughness {
+        let mut r = roughness.textured(self.roughness);
+        if let Some(v) = self.vroughness {
+            r.v = v.max(0.0);
+        }
+        r
     }
 }
 

@@ -135,6 +135,7 @@ impl Bxdf for Phong {
             kd: self.kd,
             ks: self.ks,
             roughness: None,
+            vroughness: None,
         }
     }
 

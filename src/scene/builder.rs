@@ -238,6 +238,27 @@ impl Builder {
         i
     }
 
+    /// A one-texel scene texture of `value`: one axis of a roughness pair whose other axis
+    /// comes from an image.
+    pub fn constant_texture(&mut self, value: Rgb) -> u32 {
+        let key = (
+            PathBuf::from(format!("(constant {:?})", value.to_array())),
+            value.to_array().map(f32::to_bits),
+        );
+        if let Some(&i) = self.texture_index.get(&key) {
+            return i;
+        }
+        let texture = Texture {
+            width: 1,
+            height: 1,
+            texels: vec![value],
+        };
+        self.textures.push(Arc::new(texture));
+        let i = self.textures.len() as u32 - 1;
+        self.texture_index.insert(key, i);
+        i
+    }
+
     /// Builds a material (its parameters checked by the BSDF) under the energy rule (module
     /// doc); returns its index.
     pub fn material(&mut self, origin: &Origin, desc: MaterialDesc) -> Result<u32, SceneError> {
@@ -265,6 +286,13 @@ impl Builder {
             ..mix
         });
         index
+    }
+
+    /// Gives the mix `index` the texture whose mean channel is its amount per point.
+    pub fn set_mix_texture(&mut self, index: u32, texture: u32) {
+        if let Some(Some(mix)) = self.mixes.get_mut(index as usize) {
+            mix.amount_texture = Some(texture);
+        }
     }
 
     /// Adds a material that is a variant of one already checked (an emissive copy, on one side

@@ -171,6 +171,9 @@ struct MaterialTable {
     remaproughness: Option<bool>,
     /// Image for the roughness (its first channel), relative to the scene file.
     roughness_texture: Option<PathBuf>,
+    /// Images for the roughness of one axis each, in place of `roughness_texture`'s there.
+    uroughness_texture: Option<PathBuf>,
+    vroughness_texture: Option<PathBuf>,
     /// A mix's two materials, by name.
     materials: Option<[String; 2]>,
     /// A mix's probability of its second material.
@@ -417,14 +420,16 @@ impl Loader {
                 &dir,
                 &table.ks_texture,
             )?;
-            let roughness = self.texture(
-                &path,
-                &format!("{entry}.roughness_texture"),
-                &dir,
-                &table.roughness_texture,
-            )?;
-            self.builder
-                .set_textures(index, MaterialTextures { kd, ks, roughness });
+            let (roughness, vroughness) = self.roughness_textures(index, &entry, table)?;
+            self.builder.set_textures(
+                index,
+                MaterialTextures {
+                    kd,
+                    ks,
+                    roughness,
+                    vroughness,
+                },
+            );
         }
         self.mixes(&file.material)?;
         for (i, mesh) in file.mesh.iter().enumerate() {
@@ -567,6 +572,38 @@ impl Loader {
                 message,
             }),
         }
+    }
+
+    /// The roughness textures of the material `index` from `table`, as [`MaterialTextures`]
+    /// takes them: the u axis's (both axes' where the second is `None`), and the v axis's. An
+    /// axis without an image of its own, beside one with, keeps its number as a one-texel
+    /// texture.
+    fn roughness_textures(
+        &mut self,
+        index: u32,
+        entry: &str,
+        t: &MaterialTable,
+    ) -> Result<(Option<u32>, Option<u32>), SceneError> {
+        let (path, dir) = (self.path.clone(), self.dir.clone());
+        let image = |s: &mut Self, key: &str, name: &Option<PathBuf>| {
+            s.texture(&path, &format!("{entry}.{key}"), &dir, name)
+        };
+        let both = image(self, "roughness_texture", &t.roughness_texture)?;
+        let u = image(self, "uroughness_texture", &t.uroughness_texture)?.or(both);
+        let v = image(self, "vroughness_texture", &t.vroughness_texture)?.or(both);
+        Ok(match (u, v) {
+            (u, v) if u == v => (u, None),
+            (Some(u), None) => {
+                let kind = &self.builder.material_at(index).kind;
+                let params = kind.params();
+                let v = ["vroughness", "conductor.vroughness"]
+                    .iter()
+                    .find_map(|n| params.number(n))
+                    .unwrap_or(0.0);
+                (Some(u), Some(self.builder.constant_texture(Rgb::splat(v))))
+            }
+            (u, v) => (u, v),
+        })
     }
 
     fn direction(&self, entry: &str, v: [f32; 3]) -> Result<Vec3, SceneError> {
@@ -1147,6 +1184,7 @@ impl Loader {
                 kd,
                 ks,
                 roughness: None,
+                vroughness: None,
             },
         );
         Ok(index)

@@ -4,7 +4,7 @@
 //! scene and prints nothing.
 
 use crate::accel::{self, Accel, AccelKind, Geometry, Hit, Primitive, Ray, PACKET};
-use crate::bsdf::{Albedo, Bsdf, Material, Normals, TransportMode};
+use crate::bsdf::{Albedo, Bsdf, Bxdf, Material, Normals, TransportMode};
 use crate::frame::{Azimuth, Frame};
 use crate::light::{EnvMapDesc, Lights, SceneBounds, SkyDesc};
 use crate::texture::Texture;
@@ -66,8 +66,10 @@ impl MeshShading {
 pub struct MaterialTextures {
     pub kd: Option<u32>,
     pub ks: Option<u32>,
-    /// Roughness of a microfacet type (the texel's first channel).
+    /// Roughness of a microfacet type (the texel's first channel), on both axes unless
+    /// `vroughness` gives the v axis's.
     pub roughness: Option<u32>,
+    pub vroughness: Option<u32>,
 }
 
 /// The `[render]` table: per-scene defaults, each overridable on the command line.
@@ -267,7 +269,15 @@ impl Scene {
             Primitive::Triangle(i) => self.triangle_materials[i as usize],
             Primitive::Sphere(i) => self.sphere_materials[i as usize],
         };
-        self.material(self.resolve(material, hit)).kind.is_delta()
+        let material = self.resolve(material, hit);
+        let textures = self.material_textures[material as usize];
+        let kind = &self.material(material).kind;
+        if textures.roughness.is_none() && textures.vroughness.is_none() {
+            return kind.is_delta();
+        }
+        // A roughness texture may make the surface smooth at some points only.
+        kind.with_albedo(self.albedo(material, self.hit_uv(hit)))
+            .is_delta()
     }
 
     /// The material at the point of `hit` for the material `material` of its primitive: a
@@ -435,6 +445,7 @@ impl Scene {
         let texel = |t: Option<u32>| t.map(|t| self.textures[t as usize].lookup(uv));
         Albedo {
             roughness: texel(textures.roughness).map(|c| c.r),
+            vroughness: texel(textures.vroughness).map(|c| c.r),
             ..kind.textured_albedo(texel(textures.kd), texel(textures.ks))
         }
     }

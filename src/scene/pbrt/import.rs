@@ -7,8 +7,7 @@ use super::directives::{self, Place};
 use super::lights::AreaLight;
 use super::parser::{Directive, ParseError, Parser};
 use super::shapes::{Laid, ShapeRecord};
-use super::textures::{FloatTex, Tex};
-use crate::color::Rgb;
+use super::textures::{FloatTex, PendingTextures, Tex};
 use crate::files::{self, snippet, FileError, Kind};
 use crate::light::{Light, SkyDesc};
 use crate::scene::builder::{Builder, Contents};
@@ -87,9 +86,8 @@ pub(super) struct Importer {
     pub(super) warnings: Vec<(Loc, String, usize)>,
     pub(super) warning_index: HashMap<String, usize>,
 
-    /// Per material of the builder: the image its reflectance comes from, the factor on its
-    /// texels, and the Texture directive.
-    pub(super) material_textures: Vec<Option<(PathBuf, Rgb, Loc)>>,
+    /// Per material of the builder: the images its parameters come from.
+    pub(super) material_textures: Vec<Option<PendingTextures>>,
     pub(super) default_material: Option<u32>,
     pub(super) emissive: HashMap<(u32, [u32; 3], bool), u32>,
     pub(super) camera: Option<CameraDesc>,

@@ -7,7 +7,7 @@
 
 use super::import::{Importer, Loc};
 use super::parser::{Directive, ParamList, ParamType, Spectrum, Values};
-use super::textures::Tex;
+use super::textures::{FloatTex, ImageRef, PendingTextures, Slot, Tex};
 use crate::bsdf::{EnergyFix, MaterialKind, ParamValue, Params};
 use crate::color::Rgb;
 use crate::files::snippet;
@@ -98,21 +98,15 @@ impl Importer {
     }
 
     /// A microfacet material's `roughness`, `uroughness`, `vroughness` and `remaproughness`
-    /// as the parameters of vmerge's microfacet types (which read them the same way).
-    pub(super) fn roughness_params(
+    /// as the parameters of vmerge's microfacet types (which read them the same way), the
+    /// images among them into `pending`.
+    fn roughness_params(
         &mut self,
         loc: Loc,
         p: &ParamList,
+        pending: &mut PendingTextures,
     ) -> Result<Params, SceneError> {
-        let r = self.float_param(loc, p, "roughness", 0.0)?;
-        let u = self.float_param(loc, p, "uroughness", 0.0)?;
-        let v = self.float_param(loc, p, "vroughness", 0.0)?;
-        let (u, v) = (u.or(r).unwrap_or(0.0), v.or(r).unwrap_or(0.0));
-        for x in [u, v] {
-            if !(x >= 0.0 && x.is_finite()) {
-                return Err(self.at(loc, format!("roughness {x} is negative")));
-            }
-        }
+        let (u, v) = self.roughnesses(loc, p, "", Some(pending))?;
         let remap = p.bool("remaproughness", true).map_err(self.pe(loc.file))?;
         Ok(Params::new()
             .with_number("uroughness", u)
@@ -131,24 +125,35 @@ impl Importer {
     ) -> Result<u32, SceneError> {
         let pe = self.pe(loc.file);
         let mut notes: Vec<String> = Vec::new();
-        let mut texture = None;
-        let mut albedo =
-            |im: &mut Importer, param: &str, default: Rgb| -> Result<Rgb, SceneError> {
-                Ok(match im.spectrum_texture(loc, p, param, default)? {
-                    Tex::Constant(c) => c,
-                    Tex::Image { path, scale, loc } => {
-                        texture = Some((path, scale, loc));
-                        default
-                    }
-                    Tex::Missing => default,
-                })
-            };
+        let mut pending = PendingTextures::default();
+        // A spectrum parameter's constant, its image (if any) into `slot`.
+        let spectrum = |im: &mut Importer,
+                        param: &str,
+                        default: Rgb,
+                        slot: &mut Option<ImageRef>|
+         -> Result<Rgb, SceneError> {
+            Ok(match im.spectrum_texture(loc, p, param, default)? {
+                Tex::Constant(c) => c,
+                Tex::Image { path, scale, loc } => {
+                    *slot = Some((path, scale, loc));
+                    default
+                }
+                Tex::Missing => default,
+            })
+        };
+        let albedo = |im: &mut Importer,
+                      pending: &mut PendingTextures,
+                      param: &str,
+                      default: Rgb|
+         -> Result<Rgb, SceneError> {
+            spectrum(im, param, default, &mut pending.kd)
+        };
         // What the mapping multiplies the reflectance by, applied to a texture's texels too.
         let mut factor = Rgb::WHITE;
         let (bsdf, params) = match ty {
-            "diffuse" => lambert(albedo(self, "reflectance", Rgb::splat(0.5))?),
+            "diffuse" => lambert(albedo(self, &mut pending, "reflectance", Rgb::splat(0.5))?),
             "coateddiffuse" => {
-                let reflectance = albedo(self, "reflectance", Rgb::splat(0.5))?;
+                let reflectance = albedo(self, &mut pending, "reflectance", Rgb::splat(0.5))?;
                 let mut params = self.coating(loc, p, "")?;
                 params.set("eta", ParamValue::Number(self.eta_param(loc, p, "eta")?));
                 (
@@ -169,12 +174,12 @@ impl Importer {
                     "interface.eta",
                     ParamValue::Number(self.eta_param(loc, p, "interface.eta")?),
                 );
-                let (u, v) = self.roughnesses(loc, p, "conductor.")?;
+                let (u, v) = self.roughnesses(loc, p, "conductor.", Some(&mut pending))?;
                 params = params
                     .with_number("conductor.uroughness", u)
                     .with_number("conductor.vroughness", v);
                 if given("reflectance") {
-                    let r = albedo(self, "reflectance", Rgb::splat(0.5))?;
+                    let r = albedo(self, &mut pending, "reflectance", Rgb::splat(0.5))?;
                     params = params.with_color("reflectance", unit(r));
                 } else {
                     let cu = |n| named_spectrum(n).unwrap_or(Rgb::WHITE);
@@ -188,7 +193,7 @@ impl Importer {
                 ("coatedconductor", params)
             }
             "conductor" => {
-                let params = self.roughness_params(loc, p)?;
+                let params = self.roughness_params(loc, p, &mut pending)?;
                 let params = if p.params.iter().any(|q| q.name == "reflectance") {
                     let r = self.constant_spectrum(loc, p, "reflectance", Rgb::WHITE)?;
                     params.with_color("reflectance", r)
@@ -233,9 +238,11 @@ impl Importer {
                 if ty == "thindielectric" {
                     ("thindielectric", Params::new().with_number("eta", eta))
                 } else {
-                    let params = self.roughness_params(loc, p)?;
-                    let rough = MaterialKind::from_params("dielectric", &params)
-                        .is_ok_and(|kind| !kind.is_delta());
+                    let params = self.roughness_params(loc, p, &mut pending)?;
+                    // A roughness texture makes it rough at least somewhere.
+                    let rough = !pending.is_empty()
+                        || MaterialKind::from_params("dielectric", &params)
+                            .is_ok_and(|kind| !kind.is_delta());
                     if rough {
                         ("dielectric", params.with_number("eta", eta))
                     } else {
@@ -245,9 +252,9 @@ impl Importer {
                 }
             }
             "diffusetransmission" => {
-                let reflectance = albedo(self, "reflectance", Rgb::splat(0.25))?;
+                let reflectance = albedo(self, &mut pending, "reflectance", Rgb::splat(0.25))?;
                 let transmittance =
-                    self.constant_spectrum(loc, p, "transmittance", Rgb::splat(0.25))?;
+                    spectrum(self, "transmittance", Rgb::splat(0.25), &mut pending.ks)?;
                 // pbrt-v4 scales both and clamps each to [0, 1].
                 let scale = p.float("scale", 1.0).map_err(&pe)?;
                 factor = Rgb::splat(scale);
@@ -257,7 +264,7 @@ impl Importer {
             "mix" => return self.mix(loc, name, p),
             "measured" | "hair" | "subsurface" => {
                 let kd = match p.params.iter().any(|q| q.name == "reflectance") {
-                    true => albedo(self, "reflectance", Rgb::splat(0.5))?,
+                    true => albedo(self, &mut pending, "reflectance", Rgb::splat(0.5))?,
                     false => Rgb::splat(0.5),
                 };
                 p.mark_all_used();
@@ -300,26 +307,59 @@ impl Importer {
         let material = MaterialDesc::new(name, bsdf, params);
         let index = self.builder.material(&origin, material)?;
         self.material_textures
-            .push(texture.map(|(path, scale, loc)| (path, scale * factor, loc)));
+            .push((!pending.is_empty()).then(|| pending.scaled(factor)));
         Ok(index)
     }
 
     /// A roughness pair as pbrt-v4 reads it under `prefix`: `uroughness` and `vroughness`,
-    /// each defaulting to `roughness`, then 0.
+    /// each defaulting to `roughness`, then 0. With `pending`, an axis may come from an image
+    /// (its number is then 0, the image goes into `pending`); without, an image is not followed
+    /// (a warning, and 0).
     fn roughnesses(
         &mut self,
         loc: Loc,
         p: &ParamList,
         prefix: &str,
+        pending: Option<&mut PendingTextures>,
     ) -> Result<(f32, f32), SceneError> {
-        let get = |im: &mut Importer, n: &str| im.float_param(loc, p, &format!("{prefix}{n}"), 0.0);
+        let get = |im: &mut Importer, n: &str| im.float_texture(loc, p, &format!("{prefix}{n}"));
         let common = get(self, "roughness")?;
-        let u = get(self, "uroughness")?.or(common).unwrap_or(0.0);
-        let v = get(self, "vroughness")?.or(common).unwrap_or(0.0);
-        for r in [u, v] {
+        let u = get(self, "uroughness")?.or_else(|| common.clone());
+        let v = get(self, "vroughness")?.or(common);
+        let textured = pending.is_some();
+        let axis = |im: &mut Importer, t: Option<FloatTex>| -> Result<_, SceneError> {
+            let r = match t {
+                None => return Ok((0.0, None)),
+                Some(FloatTex::Constant(r) | FloatTex::Image(Tex::Constant(Rgb { r, .. }))) => r,
+                Some(FloatTex::Image(Tex::Image { path, scale, loc })) if textured => {
+                    return Ok((0.0, Some((path, scale, loc))))
+                }
+                // Warned of at the Texture directive.
+                Some(FloatTex::Image(Tex::Missing)) => 0.0,
+                Some(FloatTex::Image(Tex::Image { .. })) => {
+                    im.warn(
+                        loc,
+                        format!("'{prefix}roughness' from an image texture not supported; 0 used"),
+                    );
+                    0.0
+                }
+            };
             if !(r >= 0.0 && r.is_finite()) {
-                return Err(self.at(loc, format!("{prefix}roughness {r} is negative")));
+                return Err(im.at(loc, format!("{prefix}roughness {r} is negative")));
             }
+            Ok((r, None))
+        };
+        let (u, u_image) = axis(self, u)?;
+        let (v, v_image) = axis(self, v)?;
+        if let Some(pending) = pending {
+            let same = |a: &ImageRef, b: &ImageRef| a.0 == b.0 && a.1 == b.1;
+            (pending.roughness, pending.vroughness) = match (u_image, v_image) {
+                (None, None) => (None, None),
+                (Some(a), Some(b)) if same(&a, &b) => (Some(Slot::Image(a)), None),
+                (Some(a), Some(b)) => (Some(Slot::Image(a)), Some(Slot::Image(b))),
+                (Some(a), None) => (Some(Slot::Image(a)), Some(Slot::Constant(v))),
+                (None, Some(b)) => (None, Some(Slot::Image(b))),
+            };
         }
         Ok((u, v))
     }
@@ -328,7 +368,7 @@ impl Importer {
     /// `prefix`, the slab and pbrt's walk), for the coated types.
     fn coating(&mut self, loc: Loc, p: &ParamList, prefix: &str) -> Result<Params, SceneError> {
         let pe = self.pe(loc.file);
-        let (u, v) = self.roughnesses(loc, p, prefix)?;
+        let (u, v) = self.roughnesses(loc, p, prefix, None)?;
         let thickness = self.float_param(loc, p, "thickness", 0.01)?.unwrap_or(0.01);
         if !(thickness >= 0.0 && thickness.is_finite()) {
             return Err(self.at(loc, format!("thickness {thickness} is negative")));
@@ -393,7 +433,17 @@ impl Importer {
                 .get(m)
                 .ok_or_else(|| self.at(loc, format!("mix: no material named '{}'", snippet(m))))?;
         }
-        let amount = self.float_param(loc, p, "amount", 0.5)?.unwrap_or(0.5);
+        let mut pending = PendingTextures::default();
+        let amount = match self.float_texture(loc, p, "amount")? {
+            None => 0.5,
+            Some(FloatTex::Constant(a) | FloatTex::Image(Tex::Constant(Rgb { r: a, .. }))) => a,
+            Some(FloatTex::Image(Tex::Image { path, scale, loc })) => {
+                pending.amount = Some((path, scale, loc));
+                0.5
+            }
+            // Warned of at the Texture directive.
+            Some(FloatTex::Image(Tex::Missing)) => 0.5,
+        };
         if !(0.0..=1.0).contains(&amount) {
             return Err(self.at(loc, format!("mix: amount {amount} is not in [0, 1]")));
         }
@@ -403,7 +453,8 @@ impl Importer {
             amount_texture: None,
         };
         let index = self.builder.mix(name.to_string(), mix);
-        self.material_textures.push(None);
+        self.material_textures
+            .push((!pending.is_empty()).then_some(pending));
         Ok(index)
     }
 
@@ -485,6 +536,8 @@ impl Importer {
         let index = self
             .builder
             .variant(base, name, light.radiance, light.two_sided);
+        // A mix's variant comes after variants of its materials (which keep their constants).
+        self.material_textures.resize(index as usize, None);
         self.material_textures
             .push(self.material_textures[base as usize].clone());
         self.emissive.insert(key, index);

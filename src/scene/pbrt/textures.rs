@@ -9,6 +9,7 @@ use crate::color::Rgb;
 use crate::files::snippet;
 use crate::options::OptionName;
 use crate::scene::alpha;
+use crate::scene::builder::Builder;
 use crate::scene::{MaterialTextures, SceneError};
 use crate::texture::Texture;
 use std::collections::HashMap;
@@ -32,8 +33,65 @@ pub(super) enum Tex {
 #[derive(Clone, Debug)]
 pub(super) enum FloatTex {
     Constant(f32),
-    /// An image map (followed for alpha cut-outs only), or [`Tex::Missing`].
+    /// An image map, or [`Tex::Missing`].
     Image(Tex),
+}
+
+/// An image a material parameter reads: the file, the factor on its texels, and the Texture
+/// directive that named it.
+pub(super) type ImageRef = (PathBuf, Rgb, Loc);
+
+/// What a texture slot of a material holds until the images are read.
+#[derive(Clone, Debug)]
+pub(super) enum Slot {
+    Image(ImageRef),
+    /// One value everywhere: an axis of a roughness pair whose other axis is an image.
+    Constant(f32),
+}
+
+/// The images a material's parameters read (module `scene`'s `MaterialTextures`, and a mix's
+/// amount), decoded at the end of the import.
+#[derive(Clone, Debug, Default)]
+pub(super) struct PendingTextures {
+    pub kd: Option<ImageRef>,
+    pub ks: Option<ImageRef>,
+    /// The roughness of both axes, or of the u axis where `vroughness` is given.
+    pub roughness: Option<Slot>,
+    pub vroughness: Option<Slot>,
+    pub amount: Option<ImageRef>,
+}
+
+impl PendingTextures {
+    fn images(&self) -> impl Iterator<Item = &ImageRef> {
+        fn slot(s: &Option<Slot>) -> Option<&ImageRef> {
+            match s {
+                Some(Slot::Image(i)) => Some(i),
+                _ => None,
+            }
+        }
+        [
+            self.kd.as_ref(),
+            self.ks.as_ref(),
+            slot(&self.roughness),
+            slot(&self.vroughness),
+            self.amount.as_ref(),
+        ]
+        .into_iter()
+        .flatten()
+    }
+
+    /// Whether nothing is read from an image.
+    pub fn is_empty(&self) -> bool {
+        self.images().next().is_none()
+    }
+
+    /// Each image times `factor` (the material's scale of its reflectances).
+    pub fn scaled(mut self, factor: Rgb) -> Self {
+        for image in [&mut self.kd, &mut self.ks].into_iter().flatten() {
+            image.1 *= factor;
+        }
+        self
+    }
 }
 
 impl Importer {
@@ -106,23 +164,29 @@ impl Importer {
                     .insert(name.to_string(), FloatTex::Constant(v));
                 return Ok(());
             }
+            "scale" if !spectrum => {
+                let base = self.float_texture(loc, p, "tex")?;
+                let scale = self.texture_scale(loc, p, name)?;
+                let scaled = match base {
+                    None => FloatTex::Constant(scale),
+                    Some(FloatTex::Constant(v)) => FloatTex::Constant(v * scale),
+                    Some(FloatTex::Image(Tex::Image {
+                        path,
+                        scale: s,
+                        loc,
+                    })) => FloatTex::Image(Tex::Image {
+                        path,
+                        scale: s * scale,
+                        loc,
+                    }),
+                    Some(missing @ FloatTex::Image(_)) => missing,
+                };
+                self.float_textures.insert(name.to_string(), scaled);
+                return Ok(());
+            }
             "scale" if spectrum => {
                 let base = self.spectrum_texture(loc, p, "tex", Rgb::WHITE)?;
-                let scale = match p.float_texture("scale").map_err(&pe)? {
-                    None => 1.0,
-                    Some((TexOr::Value(v), _)) => v,
-                    Some((TexOr::Texture(t), line)) => {
-                        self.warn(
-                            Loc { line, ..loc },
-                            format!(
-                                "Texture '{name}': scale by texture '{t}' not supported; 1 used",
-                                name = snippet(name),
-                                t = snippet(&t)
-                            ),
-                        );
-                        1.0
-                    }
-                };
+                let scale = self.texture_scale(loc, p, name)?;
                 match base {
                     Tex::Constant(c) => Tex::Constant(c * scale),
                     Tex::Image {
@@ -163,6 +227,28 @@ impl Importer {
                 .insert(name.to_string(), FloatTex::Image(tex));
         }
         Ok(())
+    }
+
+    /// A scale texture's `scale`: a number (a texture is not followed: a warning, and 1).
+    fn texture_scale(&mut self, loc: Loc, p: &ParamList, name: &str) -> Result<f32, SceneError> {
+        Ok(match p.float_texture("scale").map_err(self.pe(loc.file))? {
+            None => 1.0,
+            Some((TexOr::Value(v), _)) => v,
+            Some((TexOr::Texture(t), line)) => match self.float_textures.get(&t) {
+                Some(FloatTex::Constant(v)) => *v,
+                _ => {
+                    self.warn(
+                        Loc { line, ..loc },
+                        format!(
+                            "Texture '{name}': scale by texture '{t}' not supported; 1 used",
+                            name = snippet(name),
+                            t = snippet(&t)
+                        ),
+                    );
+                    1.0
+                }
+            },
+        })
     }
 
     /// An RGB value for a spectrum parameter, with a warning where it is approximated.
@@ -266,7 +352,31 @@ impl Importer {
         }
     }
 
-    /// A float parameter that may name a texture (only constants are followed).
+    /// A float parameter that may name a texture: its value, or the image texture it names.
+    pub(super) fn float_texture(
+        &mut self,
+        loc: Loc,
+        params: &ParamList,
+        name: &str,
+    ) -> Result<Option<FloatTex>, SceneError> {
+        match params.float_texture(name).map_err(self.pe(loc.file))? {
+            None => Ok(None),
+            Some((TexOr::Value(v), _)) => Ok(Some(FloatTex::Constant(v))),
+            Some((TexOr::Texture(t), line)) => match self.float_textures.get(&t) {
+                Some(tex) => Ok(Some(tex.clone())),
+                None => Err(self.at(
+                    Loc { line, ..loc },
+                    format!(
+                        "'{name}': no float texture named '{t}'",
+                        name = snippet(name),
+                        t = snippet(&t)
+                    ),
+                )),
+            },
+        }
+    }
+
+    /// A float parameter that may name a texture, where only constants are followed.
     pub(super) fn float_param(
         &mut self,
         loc: Loc,
@@ -357,14 +467,11 @@ impl Importer {
     }
 
     /// Decodes the materials' images (in parallel, each file once) and gives each material its
-    /// texture: the image times the material's factor (a scaled copy where that is not 1).
+    /// textures: each image times its factor (a scaled copy where that is not 1).
     pub(super) fn load_textures(&mut self) -> Result<(), SceneError> {
-        let mut paths: Vec<PathBuf> = self
-            .material_textures
-            .iter()
-            .flatten()
-            .map(|(p, _, _)| p.clone())
-            .collect();
+        let pending = std::mem::take(&mut self.material_textures);
+        let all = || pending.iter().flatten().flat_map(PendingTextures::images);
+        let mut paths: Vec<PathBuf> = all().map(|(p, _, _)| p.clone()).collect();
         paths.sort();
         paths.dedup();
         let decoded = self.builder.images(&paths);
@@ -375,10 +482,7 @@ impl Importer {
                     images.insert(path.clone(), image);
                 }
                 Err(message) => {
-                    let loc = self
-                        .material_textures
-                        .iter()
-                        .flatten()
+                    let loc = all()
                         .find(|(p, _, _)| p == path)
                         .map_or(Loc { file: 0, line: 1 }, |&(_, _, loc)| loc);
                     if !self.lenient {
@@ -388,24 +492,54 @@ impl Importer {
                 }
             }
         }
-        let pending = std::mem::take(&mut self.material_textures);
         for (material, entry) in pending.iter().enumerate() {
-            let Some((path, factor, _)) = entry else {
+            let Some(entry) = entry else {
                 continue;
             };
-            let Some(image) = images.get(path) else {
-                continue;
+            let builder = &mut self.builder;
+            let kd = scene_texture(builder, &images, entry.kd.as_ref());
+            let ks = scene_texture(builder, &images, entry.ks.as_ref());
+            let amount = scene_texture(builder, &images, entry.amount.as_ref());
+            let roughness = slot_texture(builder, &images, entry.roughness.as_ref());
+            let vroughness = slot_texture(builder, &images, entry.vroughness.as_ref());
+            if let Some(amount) = amount {
+                builder.set_mix_texture(material as u32, amount);
+            }
+            // Where one axis's image is missing, both axes keep their constants.
+            let both = |r: Option<u32>, other: Option<u32>, other_slot: &Option<Slot>| {
+                r.filter(|_| other.is_some() || other_slot.is_none())
             };
-            let kd = self.builder.texture(path, image, *factor);
-            self.builder.set_textures(
+            builder.set_textures(
                 material as u32,
                 MaterialTextures {
-                    kd: Some(kd),
-                    ks: None,
-                    roughness: None,
+                    kd,
+                    ks,
+                    roughness: both(roughness, vroughness, &entry.vroughness),
+                    vroughness: both(vroughness, roughness, &entry.roughness),
                 },
             );
         }
         Ok(())
+    }
+}
+
+/// The scene texture of a material's image; `None` where none is given or the image is missing.
+fn scene_texture(
+    builder: &mut Builder,
+    images: &HashMap<PathBuf, Arc<Texture>>,
+    image: Option<&ImageRef>,
+) -> Option<u32> {
+    let (path, factor, _) = image?;
+    Some(builder.texture(path, images.get(path)?, *factor))
+}
+
+fn slot_texture(
+    builder: &mut Builder,
+    images: &HashMap<PathBuf, Arc<Texture>>,
+    slot: Option<&Slot>,
+) -> Option<u32> {
+    match slot? {
+        Slot::Image(image) => scene_texture(builder, images, Some(image)),
+        Slot::Constant(v) => Some(builder.constant_texture(Rgb::splat(*v))),
     }
 }
