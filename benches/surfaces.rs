@@ -1,15 +1,17 @@
-//! What shading normals and textures cost: the conference room (331k triangles, from
-//! ../shared/scenes, skipped when absent) rendered flat, with shading normals, with a texture
-//! on every material, and with both. The room's OBJ has neither normals nor uvs, so the bench
-//! gives it area-weighted vertex normals and planar uvs (one texture period per 100 units), and
-//! each material a texture of its own kd with a faint pattern (+-1%), so the light paths stay
-//! those of the flat scene and the cost is the lookups': 64 x 64 texels (all 35 fit in the
-//! caches) or 512 x 512 (110 MB, where a lookup waits for memory). Then every surface of one
-//! type: Phong (kd 0.3, ks 0.6, n 20) next to a rough conductor and a rough dielectric of
-//! the same lobe width (Trowbridge-Reitz alpha 0.3). Each round renders one iteration of each
-//! variant in turn; the figures
-//! are the medians over rounds of the time of each variant over the flat one's in the same
-//! round. Run: `cargo bench --bench surfaces`.
+//! What shading normals, textures and each surface type cost. First one scattering event
+//! (building the BSDF, sampling it, evaluating it at the sample) of every type, next to
+//! Phong's, over directions spread on the hemisphere. Then the conference room (331k
+//! triangles, from ../shared/scenes, skipped when absent) rendered flat, with shading normals,
+//! with a texture on every material, and with both. The room's OBJ has neither normals nor
+//! uvs, so the bench gives it area-weighted vertex normals and planar uvs (one texture period
+//! per 100 units), and each material a texture of its own kd with a faint pattern (+-1%), so
+//! the light paths stay those of the flat scene and the cost is the lookups': 64 x 64 texels
+//! (all 35 fit in the caches) or 512 x 512 (110 MB, where a lookup waits for memory). Then
+//! every surface of one type: Phong (kd 0.3, ks 0.6, n 20) next to pbrt-v4's types (the
+//! microfacet ones of the same lobe width, Trowbridge-Reitz alpha 0.3), and every surface a
+//! mix of that Phong and that conductor. Each round renders one iteration of each variant in
+//! turn; the figures are the medians over rounds of the time of each variant over the flat
+//! one's in the same round. Run: `cargo bench --bench surfaces`.
 
 use glam::{Vec2, Vec3};
 use std::path::Path;
@@ -21,7 +23,7 @@ use vmerge::color::Rgb;
 use vmerge::integrator::RenderContext;
 use vmerge::options::{RenderOptions, Technique};
 use vmerge::render::create_integrator;
-use vmerge::scene::{self, Camera, LoadOptions, MaterialTextures, MeshShading, Scene};
+use vmerge::scene::{self, Camera, LoadOptions, MaterialTextures, MeshShading, Mix, Scene};
 use vmerge::texture::Texture;
 
 const SIZE: u32 = 256;
@@ -61,9 +63,47 @@ fn texture(kd: Rgb, n: u32) -> Texture {
     Texture::new(n, n, texels).expect("a square texture")
 }
 
+/// What the surfaces of a variant are: the room's own, every one of a type, or every one a
+/// half-and-half mix of two types.
+#[derive(Clone, Copy)]
+enum Surfaces<'a> {
+    Own,
+    All(&'a MaterialKind),
+    Mix(&'a MaterialKind, &'a MaterialKind),
+}
+
+/// Every material that does not emit becomes a mix of two new materials of types `a` and `b`,
+/// each point one of them with probability 1/2.
+fn mix_all(parts: &mut scene::SceneParts, a: &MaterialKind, b: &MaterialKind) {
+    let Some(base) = parts.materials.iter().find(|m| !m.is_emissive()).cloned() else {
+        return;
+    };
+    let first = parts.materials.len() as u32;
+    let mut mixes: Vec<Option<Mix>> = parts
+        .materials
+        .iter()
+        .map(|m| {
+            (!m.is_emissive()).then_some(Mix {
+                materials: [first, first + 1],
+                amount: 0.5,
+                amount_texture: None,
+            })
+        })
+        .collect();
+    for kind in [a, b] {
+        parts.materials.push(vmerge::bsdf::Material {
+            kind: kind.clone(),
+            ..base.clone()
+        });
+        parts.material_textures.push(MaterialTextures::default());
+        mixes.push(None);
+    }
+    parts.mixes = mixes;
+}
+
 /// The room with or without shading normals, with textures of `texture_size` texels a side
-/// (0: none), and with every material that does not emit of type `kind` where given.
-fn variant(path: &Path, normals: bool, texture_size: u32, kind: Option<&MaterialKind>) -> Scene {
+/// (0: none), and with the given surfaces.
+fn variant(path: &Path, normals: bool, texture_size: u32, surfaces: Surfaces) -> Scene {
     let textured = texture_size > 0;
     let options = LoadOptions {
         accel: AccelKind::default_kind(),
@@ -71,10 +111,14 @@ fn variant(path: &Path, normals: bool, texture_size: u32, kind: Option<&Material
         shading_normals: true,
     };
     let mut parts = scene::load_parts(path, &options).expect("the conference room loads");
-    if let Some(kind) = kind {
-        for m in parts.materials.iter_mut().filter(|m| !m.is_emissive()) {
-            m.kind = kind.clone();
+    match surfaces {
+        Surfaces::Own => {}
+        Surfaces::All(kind) => {
+            for m in parts.materials.iter_mut().filter(|m| !m.is_emissive()) {
+                m.kind = kind.clone();
+            }
         }
+        Surfaces::Mix(a, b) => mix_all(&mut parts, a, b),
     }
     let shading = vertex_normals(&parts);
     parts.shading = MeshShading {
@@ -114,7 +158,7 @@ fn median(mut v: Vec<f64>) -> f64 {
 }
 
 fn main() {
-    layered_costs();
+    event_costs();
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/scenes/conference.toml");
     if !path.exists()
         || !Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -124,13 +168,11 @@ fn main() {
         eprintln!("skipping: the conference room is absent");
         return;
     }
-    // Every surface Phong, then each microfacet type of about the same lobe width
-    // (alpha 0.3, Phong n = 2 / alpha^2 - 2 = 20).
+    // Every surface Phong, then each of pbrt-v4's types, the microfacet ones of about the
+    // same lobe width (alpha 0.3, Phong n = 2 / alpha^2 - 2 = 20).
     let kind = |name: &str, params: Params| MaterialKind::from_params(name, &params).unwrap();
-    let roughness = |p: Params| {
-        p.with_number("roughness", 0.3)
-            .with_number("remaproughness", 0.0)
-    };
+    let roughness =
+        |name: &str, p: Params| p.with_number(name, 0.3).with_number("remaproughness", 0.0);
     let phong = kind(
         "phong",
         Params::new()
@@ -138,17 +180,48 @@ fn main() {
             .with_color("ks", Rgb::splat(0.6))
             .with_number("exponent", 20.0),
     );
-    let conductor = kind("conductor", roughness(Params::new()));
-    let dielectric = kind("dielectric", roughness(Params::new()));
+    let conductor = kind("conductor", roughness("roughness", Params::new()));
+    let dielectric = kind("dielectric", roughness("roughness", Params::new()));
+    let thin = kind("thindielectric", Params::new());
+    let transmission = kind("diffusetransmission", Params::new());
+    let coated_diffuse = kind("coateddiffuse", roughness("roughness", Params::new()));
+    let coated_conductor = kind(
+        "coatedconductor",
+        roughness(
+            "interface.roughness",
+            roughness("conductor.roughness", Params::new()),
+        ),
+    );
+    let own = Surfaces::Own;
     let variants = [
-        ("flat", false, 0, None),
-        ("shading normals", true, 0, None),
-        ("textures 64^2", false, 64, None),
-        ("textures 512^2", false, 512, None),
-        ("normals + 512^2", true, 512, None),
-        ("all phong n 20", false, 0, Some(&phong)),
-        ("all conductor", false, 0, Some(&conductor)),
-        ("all dielectric", false, 0, Some(&dielectric)),
+        ("flat", false, 0, own),
+        ("shading normals", true, 0, own),
+        ("textures 64^2", false, 64, own),
+        ("textures 512^2", false, 512, own),
+        ("normals + 512^2", true, 512, own),
+        ("all phong n 20", false, 0, Surfaces::All(&phong)),
+        ("all conductor", false, 0, Surfaces::All(&conductor)),
+        ("all dielectric", false, 0, Surfaces::All(&dielectric)),
+        ("all thindielectric", false, 0, Surfaces::All(&thin)),
+        ("all diffusetransm.", false, 0, Surfaces::All(&transmission)),
+        (
+            "all coateddiffuse",
+            false,
+            0,
+            Surfaces::All(&coated_diffuse),
+        ),
+        (
+            "all coatedconductor",
+            false,
+            0,
+            Surfaces::All(&coated_conductor),
+        ),
+        (
+            "mix phong+conductor",
+            false,
+            0,
+            Surfaces::Mix(&phong, &conductor),
+        ),
     ];
     let names: Vec<&str> = variants.iter().map(|v| v.0).collect();
     let scenes: Vec<Scene> = variants
@@ -199,7 +272,7 @@ fn main() {
         }
         for (i, name) in names.iter().enumerate() {
             println!(
-                "{technique:?} {SIZE}x{SIZE}: {name:16} {:.3} s per iteration, {:.3} x flat",
+                "{technique:?} {SIZE}x{SIZE}: {name:19} {:.3} s per iteration, {:.3} x flat",
                 median(seconds[i].clone()),
                 median(ratios[i].clone())
             );
@@ -208,41 +281,67 @@ fn main() {
 }
 
 /// The cost of one scattering event (building the BSDF, sampling it, evaluating it at the
-/// sample) of pbrt-v4's layered types next to Phong's, per call over directions spread on the
-/// hemisphere; the figures are medians over rounds.
-fn layered_costs() {
+/// sample) of every type next to Phong's, per call over directions spread on the hemisphere;
+/// the figures are medians over rounds. The rough types have alpha 0.3 (Phong's n 20) where not
+/// said otherwise; a mix costs the hash of the point on top of the type it picks, measured in
+/// the room below.
+fn event_costs() {
     use std::hint::black_box;
     use vmerge::bsdf::{Bsdf, MaterialKind, Params, TransportMode};
     let kind = |name: &str, params: Params| {
         MaterialKind::from_params(name, &params).expect("valid parameters")
     };
+    let alpha =
+        |name: &str, a: f32, p: Params| p.with_number(name, a).with_number("remaproughness", 0.0);
     let kinds = [
         (
-            "phong",
+            "phong n 20",
             kind(
                 "phong",
                 Params::new()
-                    .with_color("kd", Rgb::splat(0.4))
-                    .with_color("ks", Rgb::splat(0.4))
-                    .with_number("exponent", 50.0),
+                    .with_color("kd", Rgb::splat(0.3))
+                    .with_color("ks", Rgb::splat(0.6))
+                    .with_number("exponent", 20.0),
             ),
         ),
+        ("lambert", kind("lambert", Params::new())),
+        ("mirror", kind("mirror", Params::new())),
+        ("glass", kind("glass", Params::new())),
+        ("conductor smooth", kind("conductor", Params::new())),
+        (
+            "conductor 0.3",
+            kind("conductor", alpha("roughness", 0.3, Params::new())),
+        ),
+        (
+            "conductor 0.1 x 0.4",
+            kind(
+                "conductor",
+                alpha("uroughness", 0.1, alpha("vroughness", 0.4, Params::new())),
+            ),
+        ),
+        (
+            "dielectric 0.3",
+            kind("dielectric", alpha("roughness", 0.3, Params::new())),
+        ),
+        ("thindielectric", kind("thindielectric", Params::new())),
         (
             "diffusetransmission",
             kind("diffusetransmission", Params::new()),
         ),
         ("coateddiffuse smooth", kind("coateddiffuse", Params::new())),
         (
-            "coateddiffuse rough",
-            kind("coateddiffuse", Params::new().with_number("roughness", 0.2)),
+            "coateddiffuse 0.3",
+            kind("coateddiffuse", alpha("roughness", 0.3, Params::new())),
         ),
         (
-            "coatedconductor rough",
+            "coatedconductor 0.3/0.3",
             kind(
                 "coatedconductor",
-                Params::new()
-                    .with_number("interface.roughness", 0.1)
-                    .with_number("conductor.roughness", 0.2),
+                alpha(
+                    "interface.roughness",
+                    0.3,
+                    alpha("conductor.roughness", 0.3, Params::new()),
+                ),
             ),
         ),
     ];
@@ -281,7 +380,7 @@ fn layered_costs() {
     for ((name, _), times) in kinds.iter().zip(per_call) {
         let t = median(times);
         println!(
-            "{name:22} {t:6.1} ns per scattering event, {:.2} x phong",
+            "{name:24} {t:6.1} ns per scattering event, {:.2} x phong",
             t / phong
         );
     }
