@@ -140,3 +140,37 @@ fn vcm_renders_the_caustic_seen_through_the_glass() {
         "elsewhere: vcm {v}, bpt {b} (se {se})"
     );
 }
+
+/// Every shipped scene, through every camera, keeps the bounding-sphere default radius
+/// (0.003 x its diameter): the view rule only takes over where the bounds dwarf the view.
+#[test]
+fn shipped_scenes_keep_the_bounding_sphere_default_radius() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| {
+            let path = e.ok()?.path();
+            path.join("scene.toml")
+                .exists()
+                .then(|| path.file_name()?.to_str().map(String::from))?
+        })
+        .collect();
+    names.sort();
+    assert!(names.len() > 10, "{names:?}");
+    for name in names {
+        let scene = load(&name);
+        if scene.defaults.radius.is_some() {
+            continue;
+        }
+        let [w, h] = scene.defaults.resolution;
+        for desc in &scene.cameras {
+            let camera = vmerge::scene::Camera::new(desc, w, h);
+            assert_eq!(
+                scene.default_radius(&camera),
+                0.003 * 2.0 * scene.bounding_sphere.1,
+                "{name}, camera {}",
+                desc.name
+            );
+        }
+    }
+}
