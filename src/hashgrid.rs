@@ -1004,6 +1004,32 @@ mod tests {
         }
     }
 
+    /// Queries of radii from a tenth to ten times the grid's (per-pixel merge radii over a
+    /// grid of one cell size) find what brute force finds, in both layouts.
+    #[test]
+    fn queries_of_other_radii_match_brute_force() {
+        let mut rng = Rng::for_sample(4, 0, 0, Stream::Eye);
+        let mut grid = HashGrid::default();
+        for kind in 0..3 {
+            let points = random_points(&mut rng, 3000, kind);
+            for runs in CellRuns::ALL {
+                grid.rebuild_as(&points, 0.05, runs);
+                for _ in 0..100 {
+                    let q = points[(rng.next_u32() as usize) % points.len()]
+                        + Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.1;
+                    let r = 0.05 * 10f32.powf(2.0 * rng.next_f32() - 1.0);
+                    let mut found = Vec::new();
+                    grid.query_slot_batches_within(q, Within::radius(r), |batch| {
+                        found.extend(batch.iter().map(|&slot| grid.index_of(slot as usize)));
+                    });
+                    let mut found: Vec<usize> = found.into_iter().map(|i| i as usize).collect();
+                    found.sort_unstable();
+                    assert_eq!(found, brute_force(&points, q, r), "{q} r {r}, {runs:?}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn many_chunks_match_brute_force() {
         // Far more distinct cells than one parallel chunk of the table fill holds, in rows
