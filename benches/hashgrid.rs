@@ -703,10 +703,7 @@ fn benches(c: &mut Criterion) {
             queries.len(),
             default_radius
         );
-        for (label, radius) in [
-            ("default r", default_radius),
-            ("r 0.01", 0.01 * size),
-        ] {
+        for (label, radius) in [("default r", default_radius), ("r 0.01", 0.01 * size)] {
             let workload = Workload {
                 name: format!("{name}/{label}"),
                 points: &points,

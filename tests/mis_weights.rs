@@ -754,8 +754,8 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
             // 001 sec. 6.1: every path's eye sub-path merges at its own radius, drawn at
             // random over three decades; the light sub-path knows none of them.
             for gather_radius in [1e-2, 0.1] {
-                let light_w = VcmWeights::new(power, gather_radius, setup.n(), true, true)
-                    .radius_free();
+                let light_w =
+                    VcmWeights::new(power, gather_radius, setup.n(), true, true).radius_free();
                 let radius = 10f32.powf(-3.0 * rng.next_f32());
                 let eye_w = light_w.at_radius(radius);
                 let (vc, vm) =

@@ -221,7 +221,13 @@ fn a_room_on_a_huge_ground_plane_gets_a_default_radius_of_the_room() {
     let mut obj = String::from("mtllib room.mtl\nusemtl white\n");
     // The room's eight corners, then its six faces, then the ground's four corners.
     for i in 0..8 {
-        let c = |axis: usize| if i >> axis & 1 == 0 { lo[axis] } else { hi[axis] };
+        let c = |axis: usize| {
+            if i >> axis & 1 == 0 {
+                lo[axis]
+            } else {
+                hi[axis]
+            }
+        };
         obj += &format!("v {} {} {}\n", c(0), c(1), c(2));
     }
     for [a, b, c, d] in [
@@ -240,7 +246,11 @@ fn a_room_on_a_huge_ground_plane_gets_a_default_radius_of_the_room() {
     }
     obj += "f 9 12 11\nf 9 11 10\n";
     std::fs::write(dir.path().join("room.obj"), obj).unwrap();
-    std::fs::write(dir.path().join("room.mtl"), "newmtl white\nKd 0.5 0.5 0.5\n").unwrap();
+    std::fs::write(
+        dir.path().join("room.mtl"),
+        "newmtl white\nKd 0.5 0.5 0.5\n",
+    )
+    .unwrap();
     std::fs::write(
         dir.path().join("scene.toml"),
         r#"
@@ -273,7 +283,10 @@ intensity = [10.0, 10.0, 10.0]
     let camera = vmerge::scene::Camera::new(&scene.cameras[0], 64, 64);
     let room = 0.003 * glam::Vec3::from(hi).distance(glam::Vec3::from(lo));
     let bounding = 0.003 * 2.0 * scene.bounding_sphere.1;
-    assert!(bounding > 10.0 * room, "bounding rule {bounding}, room {room}");
+    assert!(
+        bounding > 10.0 * room,
+        "bounding rule {bounding}, room {room}"
+    );
     let radius = scene.default_radius(&camera);
     assert!(
         radius < 2.0 * room && radius > 0.5 * room,

@@ -125,7 +125,9 @@ impl PyScene {
     fn default_radius(&self) -> PyResult<f32> {
         let desc = self.scene.camera(None).map_err(errors::scene)?;
         let [w, h] = self.scene.defaults.resolution;
-        Ok(self.scene.default_radius(&vmerge::scene::Camera::new(desc, w, h)))
+        Ok(self
+            .scene
+            .default_radius(&vmerge::scene::Camera::new(desc, w, h)))
     }
 
     #[getter]

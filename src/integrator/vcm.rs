@@ -182,8 +182,10 @@ impl<'a> VertexCm<'a> {
         let o = ctx.options;
         let modes = Modes::for_options(o);
         let base_radius = match o.radius_pixels {
-            Some(k) => k * median_footprint(ctx.scene, &ctx.camera)
-                .unwrap_or_else(|| ctx.scene.default_radius(&ctx.camera) / k),
+            Some(k) => {
+                k * median_footprint(ctx.scene, &ctx.camera)
+                    .unwrap_or_else(|| ctx.scene.default_radius(&ctx.camera) / k)
+            }
             None => o
                 .radius
                 .unwrap_or_else(|| ctx.scene.default_radius(&ctx.camera)),
@@ -844,7 +846,8 @@ impl<'a> VertexCm<'a> {
                         if lv.path_length + state.path_length + 1 > max_length {
                             break;
                         }
-                        color += state.throughput * self.connect(&w, &state, &hit, &bsdf, lv, stats);
+                        color +=
+                            state.throughput * self.connect(&w, &state, &hit, &bsdf, lv, stats);
                     }
                 }
                 match (gathered, self.modes.gather) {
