@@ -258,14 +258,14 @@ impl<'a> VertexCm<'a> {
     /// The weights of a full path whose first non-specular eye vertex lies `distance` (along
     /// the sub-path, specular vertices unfolded) from the camera, the primary ray leaving in
     /// `dir` (001 sec. 6.1): its radius is `--radius-pixels` pixel footprints there, a
-    /// pixel's angular size being sqrt(1 / camera pdf_w). `None` with one global radius.
+    /// pixel's angular size being sqrt(1 / camera pdf_w), shrunk as the iteration's weights
+    /// `w` shrink the base radius. `None` with one global radius.
     ///
     /// Every technique of a full path takes its radius from here, with the same arguments,
     /// so their weights sum to one: eye sub-paths at their first non-specular vertex
     /// ([`Self::trace_eye_path`]), the light tracer's splat at the light vertex it sees
     /// ([`Self::connect_to_camera`]). Techniques whose eye sub-path ends before that vertex
     /// would need none: eye sub-paths hold no merge term before it.
-    /// `w` are the iteration's weights, whose radius is the base radius shrunk.
     fn eye_weights(&self, w: &VcmWeights, distance: f32, dir: Vec3) -> Option<VcmWeights> {
         let k = self.radius_pixels?;
         let pixel = (1.0 / self.ctx.camera.pdf_w(dir)).sqrt();
