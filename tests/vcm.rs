@@ -293,3 +293,54 @@ intensity = [10.0, 10.0, 10.0]
         "default radius {radius}, room {room}, bounding rule {bounding}"
     );
 }
+
+/// The statistics an EXR records name the radius mode: global, or per pixel with its factor,
+/// and the first radius, K times the median pixel footprint.
+#[test]
+fn statistics_report_the_radius_mode() {
+    use vmerge::integrator::RenderContext;
+    let scene = load("furnace");
+    for (radius_pixels, mode) in [
+        (None, "global"),
+        (Some(2.0), "per-pixel, 2 pixel footprints"),
+    ] {
+        let mut o = options(Technique::Vcm, 16);
+        o.radius_pixels = radius_pixels;
+        let camera = vmerge::scene::Camera::new(scene.camera(None).unwrap(), 16, 16);
+        let integrator = vmerge::render::create_integrator(RenderContext {
+            scene: &scene,
+            camera: camera.clone(),
+            options: &o,
+        });
+        let stats = integrator.statistics(std::time::Duration::from_secs(1));
+        let get = |key: &str| {
+            stats
+                .iter()
+                .find(|(k, _)| k == key)
+                .map(|(_, v)| v.clone())
+                .unwrap_or_else(|| panic!("no {key} in {stats:?}"))
+        };
+        assert_eq!(get("radius_mode"), mode);
+        let base: f32 = get("base_radius").parse().unwrap();
+        match radius_pixels {
+            // The furnace is seen from inside: the median footprint lies between those of the
+            // pixels nearest and farthest from the walls, the corners and the centre.
+            Some(k) => {
+                let footprint = |x: f32, y: f32| {
+                    let ray = camera.generate_ray(x, y);
+                    let t = scene.intersect(&ray).unwrap().hit.t * ray.dir.length();
+                    k * t / camera.pdf_w(ray.dir).sqrt()
+                };
+                let samples = [
+                    footprint(0.5, 0.5),
+                    footprint(15.5, 15.5),
+                    footprint(8.0, 8.0),
+                ];
+                let lo = samples.iter().copied().fold(f32::MAX, f32::min);
+                let hi = samples.iter().copied().fold(0.0, f32::max);
+                assert!(base > 0.5 * lo && base < 2.0 * hi, "{base} vs {lo}..{hi}");
+            }
+            None => assert_eq!(base, scene.default_radius(&camera)),
+        }
+    }
+}
