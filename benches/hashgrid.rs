@@ -692,16 +692,18 @@ fn benches(c: &mut Criterion) {
         let tree = KdTree::new_from_slice(&arrays);
         drop(arrays);
         let usable = queries.len() / LIGHT_BATCH * LIGHT_BATCH;
+        let default_radius = scene.default_radius(&Camera::new(
+            &scene.cameras[0],
+            LIGHT_RESOLUTION,
+            LIGHT_RESOLUTION,
+        ));
         println!(
             "{name}: {} light vertices, {} eye vertices, size {size:.3}, default radius {:.5}",
             points.len(),
             queries.len(),
-            scene.default_radius()
+            default_radius
         );
-        for (label, radius) in [
-            ("default r", scene.default_radius()),
-            ("r 0.01", 0.01 * size),
-        ] {
+        for (label, radius) in [("default r", default_radius), ("r 0.01", 0.01 * size)] {
             let workload = Workload {
                 name: format!("{name}/{label}"),
                 points: &points,

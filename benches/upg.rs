@@ -369,7 +369,7 @@ fn bench_scene(c: &mut Criterion, name: &'static str, path: &Path, rows: &mut Ve
     let Some(scene) = load_scene(name, path, AccelKind::default_kind()) else {
         return;
     };
-    let radius = scene.default_radius();
+    let radius = scene.default_radius(&Camera::new(scene.camera(None).expect("camera"), 256, 256));
     for side in [Side::Camera, Side::Light] {
         for size in GATHER_SIZES {
             let gathers = gathers(&scene, side, size, radius);

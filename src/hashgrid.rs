@@ -218,15 +218,32 @@ impl GroupedPoints {
     }
 }
 
+/// The sphere a query takes the points of.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Within {
+    radius_sq: f32,
+    /// How far from a query its cells are taken: the radius and a margin for rounding.
+    reach: f32,
+}
+
+impl Within {
+    /// The points at distance <= `radius` (> 0).
+    pub fn radius(radius: f32) -> Self {
+        Within {
+            radius_sq: radius * radius,
+            reach: radius * (1.0 + 1e-6),
+        }
+    }
+}
+
 /// A grid over no points; [`HashGrid::rebuild`] fills it.
 #[derive(Default)]
 pub struct HashGrid {
     radius: f32,
-    radius_sq: f32,
+    /// The queries of the grid's own radius.
+    within: Within,
     runs: CellRuns,
     inv_cell: f32,
-    /// How far from a query its cells are taken: the radius and a margin for rounding.
-    reach: f32,
     /// The points' lowest cell, per axis.
     low: [i64; 3],
     /// The highest cell offset from `low` in use (at most `SPAN_LIMIT`), per axis.
@@ -325,10 +342,9 @@ impl HashGrid {
     /// The radius and cell side of the given runs.
     fn set_cells(&mut self, radius: f32, runs: CellRuns) {
         self.radius = radius;
-        self.radius_sq = radius * radius;
+        self.within = Within::radius(radius);
         self.runs = runs;
         self.inv_cell = 1.0 / runs.cell_side(radius);
-        self.reach = radius * (1.0 + 1e-6);
     }
 
     /// Sorts the points into cells for the given runs and finds the distinct cells.
@@ -397,10 +413,23 @@ impl HashGrid {
     /// far apart in memory, each likely a cache miss) overlap instead of each waiting behind
     /// the work on the previous point.
     #[inline]
-    pub fn query_slot_batches(&self, q: Vec3, mut visit: impl FnMut(&[u32])) {
+    pub fn query_slot_batches(&self, q: Vec3, visit: impl FnMut(&[u32])) {
+        self.query_slot_batches_within(q, self.within, visit);
+    }
+
+    /// [`Self::query_slot_batches`] for the points within another radius than the grid's
+    /// ([`Within::radius`]): a larger one visits more cells, a smaller one tests fewer points
+    /// in the same cells. What per-pixel merge radii query a grid of one cell size with.
+    #[inline]
+    pub fn query_slot_batches_within(
+        &self,
+        q: Vec3,
+        within: Within,
+        mut visit: impl FnMut(&[u32]),
+    ) {
         let mut batch = [0u32; QUERY_BATCH];
         let mut len = 0;
-        self.query_slots(q, |slot, _| {
+        self.query_slots_within(q, within, |slot, _| {
             batch[len] = slot as u32;
             len += 1;
             if len == QUERY_BATCH {
@@ -429,15 +458,20 @@ impl HashGrid {
     /// [`Self::query`] that names each point by its slot (see [`Self::index_of`]), in the same
     /// order.
     #[inline]
-    pub fn query_slots(&self, q: Vec3, mut visit: impl FnMut(usize, f32)) {
-        let Some((lo, hi)) = self.cell_bounds(q) else {
+    pub fn query_slots(&self, q: Vec3, visit: impl FnMut(usize, f32)) {
+        self.query_slots_within(q, self.within, visit);
+    }
+
+    #[inline]
+    fn query_slots_within(&self, q: Vec3, within: Within, mut visit: impl FnMut(usize, f32)) {
+        let Some((lo, hi)) = self.cell_bounds(q, within.reach) else {
             return;
         };
         if (0..3).all(|axis| hi[axis] - lo[axis] < self.runs.len()) {
             let first = self.key(lo);
             match self.runs {
-                CellRuns::Pairs => self.scan_rows::<2, 4>(first, q, &mut visit),
-                CellRuns::Triplets => self.scan_rows::<3, 9>(first, q, &mut visit),
+                CellRuns::Pairs => self.scan_rows::<2, 4>(first, q, within, &mut visit),
+                CellRuns::Triplets => self.scan_rows::<3, 9>(first, q, within, &mut visit),
             }
         } else {
             // A sphere touching one cell more along an axis (its centre within rounding of a
@@ -445,7 +479,8 @@ impl HashGrid {
             for z in lo[2]..=hi[2] {
                 for y in lo[1]..=hi[1] {
                     for x in (lo[0]..=hi[0]).step_by(self.runs.len() as usize) {
-                        self.scan(self.lookup(self.key([x, y, z])), q, &mut visit);
+                        let range = self.lookup(self.key([x, y, z]));
+                        self.points.scan(range, q, within.radius_sq, &mut visit);
                     }
                 }
             }
@@ -460,6 +495,7 @@ impl HashGrid {
         &self,
         first: u64,
         q: Vec3,
+        within: Within,
         visit: &mut impl FnMut(usize, f32),
     ) {
         let (y, z) = (self.stride_y, self.stride_z);
@@ -468,7 +504,7 @@ impl HashGrid {
             self.lookup(first + row % RUN * y + row / RUN * z)
         });
         for range in ranges {
-            self.scan(range, q, visit);
+            self.points.scan(range, q, within.radius_sq, visit);
         }
     }
 
@@ -502,15 +538,15 @@ impl HashGrid {
     /// little longer still, so a point on a cell face of the sphere's box is never missed.
     /// `None` when no point's cell is in them.
     #[inline]
-    fn cell_bounds(&self, q: Vec3) -> Option<([i64; 3], [i64; 3])> {
+    fn cell_bounds(&self, q: Vec3, reach: f32) -> Option<([i64; 3], [i64; 3])> {
         if self.table.is_empty() {
             return None;
         }
         let (mut lo, mut hi) = ([0; 3], [0; 3]);
         for axis in 0..3 {
             let span = self.span[axis];
-            let below = cell(q[axis] - self.reach, self.inv_cell) - self.low[axis];
-            let above = cell(q[axis] + self.reach, self.inv_cell) - self.low[axis];
+            let below = cell(q[axis] - reach, self.inv_cell) - self.low[axis];
+            let above = cell(q[axis] + reach, self.inv_cell) - self.low[axis];
             // Beyond the span limit the last cell holds all further points.
             if above < 0 || (below > span && span < SPAN_LIMIT) {
                 return None;
@@ -708,11 +744,6 @@ impl HashGrid {
                     }
                 }
             });
-    }
-
-    #[inline]
-    fn scan(&self, range: std::ops::Range<usize>, q: Vec3, visit: &mut impl FnMut(usize, f32)) {
-        self.points.scan(range, q, self.radius_sq, visit);
     }
 }
 
@@ -969,6 +1000,32 @@ mod tests {
                     Vec3::splat(-1000.0),
                 ]);
                 check(&points, &qs, r);
+            }
+        }
+    }
+
+    /// Queries of radii from a tenth to ten times the grid's (per-pixel merge radii over a
+    /// grid of one cell size) find what brute force finds, in both layouts.
+    #[test]
+    fn queries_of_other_radii_match_brute_force() {
+        let mut rng = Rng::for_sample(4, 0, 0, Stream::Eye);
+        let mut grid = HashGrid::default();
+        for kind in 0..3 {
+            let points = random_points(&mut rng, 3000, kind);
+            for runs in CellRuns::ALL {
+                grid.rebuild_as(&points, 0.05, runs);
+                for _ in 0..100 {
+                    let q = points[(rng.next_u32() as usize) % points.len()]
+                        + Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.1;
+                    let r = 0.05 * 10f32.powf(2.0 * rng.next_f32() - 1.0);
+                    let mut found = Vec::new();
+                    grid.query_slot_batches_within(q, Within::radius(r), |batch| {
+                        found.extend(batch.iter().map(|&slot| grid.index_of(slot as usize)));
+                    });
+                    let mut found: Vec<usize> = found.into_iter().map(|i| i as usize).collect();
+                    found.sort_unstable();
+                    assert_eq!(found, brute_force(&points, q, r), "{q} r {r}, {runs:?}");
+                }
             }
         }
     }

@@ -170,6 +170,9 @@ pub struct RenderOptions {
     pub beta: f32,
     /// Merge radius in world units; `None` = the scene's default.
     pub radius: Option<f32>,
+    /// Merge radius per eye sub-path from its pixel footprint (001 sec. 6.1): this many pixel
+    /// widths at the distance of its first non-specular vertex; `None` = one global radius.
+    pub radius_pixels: Option<f32>,
     /// Radius shrinking exponent (000 eq. 2.85); `None` = the technique's default.
     pub alpha: Option<f32>,
     /// Segments of a full path; `None` = the scene's default, 0 = unbounded.
@@ -213,6 +216,7 @@ impl RenderOptions {
         resolution: None,
         beta: 2.0,
         radius: None,
+        radius_pixels: None,
         alpha: None,
         max_path_length: None,
         roulette: 3,
@@ -589,7 +593,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             value_name: "RADIUS",
             choices: None,
         },
-        help: "merge radius in world units (default: 0.003 x the scene's bounding-sphere diameter)",
+        help: "merge radius in world units (default: 0.003 x the scene's bounding-sphere diameter, or of the camera's view where the bounds are far larger than what it sees)",
         takes: Technique::merges,
         write: |o| o.radius.map(|r| r.to_string()),
         parse: |o, s| {
@@ -601,6 +605,30 @@ pub static OPTIONS: &[OptionSpec] = &[
             _ => None,
         },
         expected: "a finite radius > 0 in world units",
+    },
+    OptionSpec {
+        name: "radius_pixels",
+        short: None,
+        form: Form::Value {
+            value_name: "PIXELS",
+            choices: None,
+        },
+        help: "merge radius per pixel: this many pixel footprints at the first non-specular eye vertex, shrinking like --radius (001 sec. 6.1)",
+        takes: Technique::shrinks_radius,
+        write: |o| o.radius_pixels.map(|k| k.to_string()),
+        parse: |o, s| {
+            o.radius_pixels = Some(number(s)?);
+            Ok(())
+        },
+        // The clamped weights of 002's density map do not factor out of the light sub-paths'
+        // quantities, as 001 sec. 6.1 needs; one radius of the two kinds is enough.
+        invalid: |o| match o.radius_pixels {
+            Some(k) if !(k.is_finite() && k > 0.0) => Some(k.to_string()),
+            Some(k) if o.radius.is_some() => Some(format!("{k} with --radius")),
+            Some(k) if o.density_mis.is_some() => Some(format!("{k} with --density-mis")),
+            _ => None,
+        },
+        expected: "a finite number of pixels > 0, without --radius or --density-mis",
     },
     OptionSpec {
         name: "alpha",
@@ -1144,6 +1172,7 @@ mod tests {
             camera: Some("front".into()),
             resolution: Some([1, 1]),
             radius: Some(1.0),
+            radius_pixels: Some(1.0),
             alpha: Some(1.0),
             max_path_length: Some(1),
             strategy: Some([1, 1]),
@@ -1202,6 +1231,45 @@ mod tests {
             bad_packet.validate(),
             Err(OptionError::OutOfRange {
                 option: OptionName("upg_packet"),
+                ..
+            })
+        ));
+    }
+
+    /// A per-pixel radius is a positive footprint, and is not one radius twice nor 002's
+    /// weights, whose clamps need one radius for the light sub-paths.
+    #[test]
+    fn radius_pixels_has_a_range_and_excludes_global_radii() {
+        let vcm = |radius_pixels, radius, density_mis| RenderOptions {
+            technique: Technique::Vcm,
+            radius_pixels: Some(radius_pixels),
+            radius,
+            density_mis,
+            ..RenderOptions::DEFAULT
+        };
+        assert_eq!(vcm(1.5, None, None).validate(), Ok(()));
+        for bad in [
+            vcm(0.0, None, None),
+            vcm(f32::NAN, None, None),
+            vcm(1.0, Some(0.1), None),
+            vcm(1.0, None, Some(DensityMis::Star)),
+        ] {
+            assert!(matches!(
+                bad.validate(),
+                Err(OptionError::OutOfRange {
+                    option: OptionName("radius_pixels"),
+                    ..
+                })
+            ));
+        }
+        let upg = RenderOptions {
+            technique: Technique::Upg,
+            ..vcm(1.0, None, None)
+        };
+        assert!(matches!(
+            upg.validate(),
+            Err(OptionError::NotTaken {
+                option: OptionName("radius_pixels"),
                 ..
             })
         ));

@@ -11,7 +11,8 @@
 //! power heuristic evaluated directly from products of area pdfs (000 eq. (2.47)); the VCM
 //! weights are checked with merges by density estimation and with UPG's merges from either
 //! side, whose clamped acceptance (000 eqs. (2.80)-(2.82)) binds at the larger radii, and
-//! with merge-only UPG, whose merges share each path among themselves.
+//! with merge-only UPG, whose merges share each path among themselves, and with a radius of
+//! its own for every eye sub-path (001 sec. 6.1), the light sub-path carrying c^VC and c^VM.
 
 mod common;
 
@@ -446,6 +447,24 @@ fn vcm_weights(
     q: &PathPdfs,
     inv_k: &[f32],
 ) -> (Vec<f32>, Vec<f32>) {
+    vcm_weights_with(None, w, gather, path, q, inv_k)
+}
+
+/// [`vcm_weights`], with `light_w` (when given) the radius-free weights the light sub-path is
+/// traced with and `w` the eye sub-path's own radius (001 sec. 6.1), as vcm.rs does with
+/// per-pixel radii: the eye sub-path takes `w` from its first non-specular vertex on, and
+/// every use of a light vertex resolves its c^VC, c^VM at the eye's radius.
+fn vcm_weights_with(
+    light_w: Option<&VcmWeights>,
+    w: &VcmWeights,
+    gather: Gather,
+    path: &FullPath,
+    q: &PathPdfs,
+    inv_k: &[f32],
+) -> (Vec<f32>, Vec<f32>) {
+    let eye_w = w;
+    // Each merge's eta is the eye sub-path's, whichever side holds the merge vertex.
+    let w = light_w.unwrap_or(eye_w);
     let k = q.k;
     let l = path.light;
     let surface = |i: usize| (1..k).contains(&i) && q.connectable[i];
@@ -465,7 +484,7 @@ fn vcm_weights(
             Gather::Density | Gather::UpgLight => q.light_a[j],
             Gather::UpgCamera => q.eye_a[j],
         };
-        w.eta_if(merge_valid(j), w.mis(1.0 / gather_pdf))
+        eye_w.eta_if(merge_valid(j), w.mis(1.0 / gather_pdf))
     };
     let mut light = vec![State::default(); k];
     let mut state = State {
@@ -502,8 +521,13 @@ fn vcm_weights(
         mis: w.camera_origin(q.camera_pdf_w),
         deferred: Deferred::NONE,
     };
+    let mut w = w;
     for i in (1..k).rev() {
         state.arrive(w, q.dist2[i].sqrt(), q.cos_next[i], true);
+        // The eye sub-path's radius, fixed at its first non-specular vertex.
+        if q.connectable[i] {
+            w = eye_w;
+        }
         state.deferred.keep_if(surface(i));
         if surface(i) && !inv_k.is_empty() {
             w.visit(&mut state.mis, inv_k[i]);
@@ -526,6 +550,16 @@ fn vcm_weights(
         state.arrive(w, q.dist2[0].sqrt(), l.cos_at_light, true);
     }
     eye[0] = state;
+    // Every technique weighs with the eye sub-path's radius.
+    let w = eye_w;
+    let light_at = |i: usize, rev_pdf_w: f32| {
+        let v = light[i].at(w, rev_pdf_w);
+        if light_w.is_some() {
+            w.resolve(&v)
+        } else {
+            v
+        }
+    };
     let vc = (0..=k)
         .map(|s| {
             if !valid(path, q, s) {
@@ -543,7 +577,7 @@ fn vcm_weights(
                 let camera_pdf_a = q.eye_a[k - 1] * w.light_paths;
                 let rev = q.eye_w[k - 1];
                 w.to_camera(
-                    &light[k - 1].at(w, rev),
+                    &light_at(k - 1, rev),
                     eta(k - 1) * rho(k - 1),
                     camera_pdf_a,
                     rev,
@@ -551,7 +585,7 @@ fn vcm_weights(
             } else {
                 let p = connection_pdfs(q, s);
                 w.connect(
-                    &light[s - 1].at(w, p.light_rev_pdf_w),
+                    &light_at(s - 1, p.light_rev_pdf_w),
                     eta(s - 1) * rho(s - 1),
                     &eye[s].at(w, p.eye_rev_pdf_w),
                     eta(s) * rho(s),
@@ -569,7 +603,7 @@ fn vcm_weights(
             }
             let (pdf_w, rev_pdf_w) = (q.eye_w[j], q.light_w[j]);
             w.merge(
-                &light[j].at(w, pdf_w),
+                &light_at(j, pdf_w),
                 &eye[j].at(w, rev_pdf_w),
                 (pdf_w, rev_pdf_w),
                 eta(j),
@@ -615,6 +649,7 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
         aim,
     };
     let (mut specular, mut merged, mut clamped, mut shared_merges) = (0, 0, 0, 0);
+    let mut per_pixel_mixed = 0;
     let mut reweighted = std::collections::HashMap::<&str, usize>::new();
     for path in &paths {
         let q = evaluate(&setup, path);
@@ -716,6 +751,26 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                     }
                 }
             }
+            // 001 sec. 6.1: every path's eye sub-path merges at its own radius, drawn at
+            // random over three decades; the light sub-path knows none of them.
+            for gather_radius in [1e-2, 0.1] {
+                let light_w =
+                    VcmWeights::new(power, gather_radius, setup.n(), true, true).radius_free();
+                let radius = 10f32.powf(-3.0 * rng.next_f32());
+                let eye_w = light_w.at_radius(radius);
+                let (vc, vm) =
+                    vcm_weights_with(Some(&light_w), &eye_w, Gather::Density, path, &q, &[]);
+                let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
+                assert!(
+                    (sum - 1.0).abs() < 1e-4,
+                    "{name}: per-pixel radius weights of a {}-segment path sum to {sum} \
+                     (beta {beta}, eye r {radius}): VC {vc:?} VM {vm:?}",
+                    q.k
+                );
+                if vm.iter().any(|&m| m > 1e-3) && vc.iter().any(|&c| c > 1e-3) {
+                    per_pixel_mixed += 1;
+                }
+            }
             // VC alone is BPT: the two recursions give the same weights.
             let w = VcmWeights::new(power, 0.01, setup.n(), true, false);
             let (vc, _) = vcm_weights(&w, Gather::Density, path, &q, &[]);
@@ -727,6 +782,10 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
             }
         }
     }
+    assert!(
+        per_pixel_mixed > 0,
+        "{name}: no per-pixel radius weighed merges against connections"
+    );
     assert!(clamped > 0, "{name}: the clamp never bound");
     for mode in [DensityMis::Plus, DensityMis::Star] {
         assert!(

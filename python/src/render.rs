@@ -120,10 +120,14 @@ impl PyScene {
         self.scene.lights.len()
     }
 
-    /// The merge radius when none is given: 0.003 x the bounding sphere's diameter.
+    /// The merge radius when none is given, for the default camera (`Scene::default_radius`).
     #[getter]
-    fn default_radius(&self) -> f32 {
-        self.scene.default_radius()
+    fn default_radius(&self) -> PyResult<f32> {
+        let desc = self.scene.camera(None).map_err(errors::scene)?;
+        let [w, h] = self.scene.defaults.resolution;
+        Ok(self
+            .scene
+            .default_radius(&vmerge::scene::Camera::new(desc, w, h)))
     }
 
     #[getter]

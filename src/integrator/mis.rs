@@ -287,6 +287,8 @@ pub struct VcmWeights {
     /// Connections are techniques: false for merge-only UPG, whose d^VC then sums the merges'
     /// eta_i alone.
     connections: bool,
+    /// VCM's weights with eta_VCM left out ([`Self::radius_free`]).
+    radius_free: bool,
 }
 
 /// The density factor and 1 / k of a merge where 002's heuristic is off (VCM, UPG).
@@ -315,6 +317,40 @@ impl VcmWeights {
             clamp: None,
             connections: true,
             density: None,
+            radius_free: false,
+        }
+    }
+
+    /// The same weights at another radius: what an eye sub-path of its own radius weighs with
+    /// (001 sec. 6.1). VCM's weights only: UPG's clamp and 002's density factors are not
+    /// linear in eta_VCM, so the light sub-paths' quantities could not leave it out.
+    pub fn at_radius(&self, radius: f32) -> Self {
+        let both = self.vm_factor > 0.0 || self.radius_free;
+        VcmWeights::new(self.power, radius, self.light_paths, both, both)
+    }
+
+    /// The weights light sub-paths are traced with when every eye sub-path has its own radius
+    /// (001 sec. 6.1): with eta_VCM left out (as BPT's, 001 sec. 5.5), the recursion of
+    /// d^VC and d^VM is that of c^VC and c^VM (001 eqs. (56)-(61)): every connection term
+    /// in d^VC and every merge term, without its eta_VCM, in d^VM. [`Self::resolve`] applies
+    /// an eye sub-path's eta_VCM once a technique joins the two.
+    pub fn radius_free(self) -> Self {
+        VcmWeights {
+            vm_factor: 0.0,
+            vc_factor: 0.0,
+            radius_free: self.vm_factor > 0.0,
+            ..self
+        }
+    }
+
+    /// d^VC and d^VM at this radius of a light vertex whose quantities are c^VC and c^VM
+    /// ([`Self::radius_free`]): 001 eqs. (62)-(63), in the powered form mis(eta_VCM) c^VM.
+    /// Without connections (bpm) eta_VCM is 0 and d^VM is c^VM.
+    pub fn resolve(&self, c: &VcmVertex) -> VcmVertex {
+        VcmVertex {
+            d_vc: c.d_vc + self.vm_factor * c.d_vm, // 001 eq. (62)
+            d_vm: c.d_vc * self.vc_factor + c.d_vm, // 001 eq. (63)
+            ..*c
         }
     }
 

@@ -22,7 +22,9 @@
 
 use super::connection::{Connection, LightSample};
 use super::density::DensityMap;
-use super::mis::{ConnectionPdfs, Gather, Neighbour, Power, VcmWeights, VmHere, NO_DENSITY};
+use super::mis::{
+    ConnectionPdfs, Gather, Neighbour, Power, VcmVertex, VcmWeights, VmHere, NO_DENSITY,
+};
 use super::subpath::{self, EyeVertex, MergeVertex};
 use super::upg::acceptance::{Estimator, PacketWidth};
 use super::upg::merge::{Gathered, Tentative, UpgMerges};
@@ -32,7 +34,7 @@ use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
-use crate::hashgrid::{kept, HashGrid};
+use crate::hashgrid::{kept, HashGrid, Within};
 use crate::light::Aim;
 use crate::options::{RenderOptions, Technique};
 use crate::sampling::Sampler;
@@ -103,6 +105,29 @@ impl Modes {
     }
 }
 
+/// The median pixel footprint (distance times the pixel's angular size) over a grid of primary
+/// rays, where a quarter of them or more hit the scene: with `--radius-pixels`, the radius the
+/// hash grid's cells are sized for (queries of other radii visit the cells theirs need).
+fn median_footprint(scene: &Scene, camera: &crate::scene::Camera) -> Option<f32> {
+    const GRID: u32 = 16;
+    let mut footprints: Vec<f32> = (0..GRID * GRID)
+        .filter_map(|i| {
+            let x = ((i % GRID) as f32 + 0.5) * camera.width as f32 / GRID as f32;
+            let y = ((i / GRID) as f32 + 0.5) * camera.height as f32 / GRID as f32;
+            let ray = camera.generate_ray(x, y);
+            let hit = scene.intersect(&ray)?;
+            let footprint = hit.hit.t * ray.dir.length() / camera.pdf_w(ray.dir).sqrt();
+            (footprint.is_finite() && footprint > 0.0).then_some(footprint)
+        })
+        .collect();
+    if footprints.len() < (GRID * GRID / 4) as usize {
+        return None;
+    }
+    let middle = footprints.len() / 2;
+    let (_, &mut median, _) = footprints.select_nth_unstable_by(middle, f32::total_cmp);
+    Some(median)
+}
+
 /// The sub-path state of this family: its pending MIS terms are UPG's deferred merges (none
 /// for the density-estimate merges).
 type SubPath = subpath::SubPath<Deferred>;
@@ -135,7 +160,11 @@ struct EyePass<'i> {
 pub struct VertexCm<'a> {
     ctx: RenderContext<'a>,
     modes: Modes,
+    /// The first iteration's radius: the global one, or with `--radius-pixels` the median
+    /// of the pixels' (the grid's cell size and the statistics' figure).
     base_radius: f32,
+    /// `--radius-pixels`: each eye sub-path's radius from its pixel footprint (001 sec. 6.1).
+    radius_pixels: Option<f32>,
     alpha: f32,
     /// The merges of `upg` and `upg-camera`.
     upg_merges: Option<UpgMerges<'a>>,
@@ -152,7 +181,15 @@ impl<'a> VertexCm<'a> {
     pub fn new(ctx: RenderContext<'a>) -> Self {
         let o = ctx.options;
         let modes = Modes::for_options(o);
-        let base_radius = o.radius.unwrap_or_else(|| ctx.scene.default_radius());
+        let base_radius = match o.radius_pixels {
+            Some(k) => {
+                k * median_footprint(ctx.scene, &ctx.camera)
+                    .unwrap_or_else(|| ctx.scene.default_radius(&ctx.camera) / k)
+            }
+            None => o
+                .radius
+                .unwrap_or_else(|| ctx.scene.default_radius(&ctx.camera)),
+        };
         let upg_merges = (modes.gather != Gather::Density).then(|| {
             let estimator = Estimator {
                 packet: if o.upg_packet == 8 {
@@ -176,6 +213,7 @@ impl<'a> VertexCm<'a> {
         VertexCm {
             modes,
             base_radius,
+            radius_pixels: o.radius_pixels,
             alpha: o.alpha(),
             upg_merges,
             density,
@@ -188,9 +226,11 @@ impl<'a> VertexCm<'a> {
 
     /// The constants of iteration `iteration` (0-based): 000 eq. 2.85's radius
     /// r_i = r_1 sqrt(i^(alpha - 1)) for i = iteration + 1.
+    /// With per-pixel radii, the light sub-paths' weights leave eta_VCM out
+    /// ([`VcmWeights::radius_free`]) and each eye sub-path takes its own
+    /// ([`Self::eye_weights`]).
     fn weights(&self, iteration: u64) -> VcmWeights {
-        let i = (iteration + 1) as f32;
-        let radius = (self.base_radius * i.powf(0.5 * (self.alpha - 1.0))).max(1e-7);
+        let radius = self.shrunk(iteration, self.base_radius);
         let (power, paths) = (Power(self.ctx.options.beta), self.light_paths() as f32);
         if self.modes.gather != Gather::Density {
             return if self.modes.vc {
@@ -200,9 +240,47 @@ impl<'a> VertexCm<'a> {
             };
         }
         let w = VcmWeights::new(power, radius, paths, self.modes.vc, self.modes.vm);
+        if self.radius_pixels.is_some() {
+            return w.radius_free();
+        }
         match (self.ctx.options.density_mis, &self.density) {
             (Some(mode), Some(map)) if map.iterations() > 0 => w.with_density(mode),
             _ => w,
+        }
+    }
+
+    /// 000 eq. 2.85's r_i = r_1 sqrt(i^(alpha - 1)) for i = iteration + 1.
+    fn shrunk(&self, iteration: u64, first: f32) -> f32 {
+        let i = (iteration + 1) as f32;
+        (first * i.powf(0.5 * (self.alpha - 1.0))).max(1e-7)
+    }
+
+    /// The weights of a full path whose first non-specular eye vertex lies `distance` (along
+    /// the sub-path, specular vertices unfolded) from the camera, the primary ray leaving in
+    /// `dir` (001 sec. 6.1): its radius is `--radius-pixels` pixel footprints there, a
+    /// pixel's angular size being sqrt(1 / camera pdf_w), shrunk as the iteration's weights
+    /// `w` shrink the base radius. `None` with one global radius.
+    ///
+    /// Every technique of a full path takes its radius from here, with the same arguments,
+    /// so their weights sum to one: eye sub-paths at their first non-specular vertex
+    /// ([`Self::trace_eye_path`]), the light tracer's splat at the light vertex it sees
+    /// ([`Self::connect_to_camera`]). Techniques whose eye sub-path ends before that vertex
+    /// would need none: eye sub-paths hold no merge term before it.
+    fn eye_weights(&self, w: &VcmWeights, distance: f32, dir: Vec3) -> Option<VcmWeights> {
+        let k = self.radius_pixels?;
+        let pixel = (1.0 / self.ctx.camera.pdf_w(dir)).sqrt();
+        let shrink = w.radius / self.base_radius;
+        Some(w.at_radius((k * distance * pixel * shrink).max(1e-7)))
+    }
+
+    /// A light vertex's MIS quantities as weights `w` of an eye sub-path take them: with
+    /// per-pixel radii they carry c^VC and c^VM, resolved at the eye sub-path's radius
+    /// (001 eqs. (62)-(63)).
+    fn light_mis(&self, w: &VcmWeights, v: VcmVertex) -> VcmVertex {
+        if self.radius_pixels.is_some() {
+            w.resolve(&v)
+        } else {
+            v
         }
     }
 
@@ -481,6 +559,9 @@ impl<'a> VertexCm<'a> {
         let weight = if self.modes.light_trace {
             1.0
         } else {
+            // The path's radius: this vertex is its first non-specular one from the camera.
+            let own = self.eye_weights(w, dist2.sqrt(), -dir);
+            let w = own.as_ref().unwrap_or(w);
             // Towards the eye lies the camera, which tentative rays cannot leave from.
             let here = self
                 .modes
@@ -488,7 +569,7 @@ impl<'a> VertexCm<'a> {
                 .merge_at(Neighbour::surface_if(state.prev_surface), Neighbour::Other);
             let eta = w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0;
             w.to_camera(
-                &state.mis_at(w, eval.rev_pdf_w),
+                &self.light_mis(w, state.mis_at(w, eval.rev_pdf_w)),
                 eta,
                 camera_pdf_a,
                 eval.rev_pdf_w,
@@ -619,7 +700,7 @@ impl<'a> VertexCm<'a> {
             },
         ) * state.density.0;
         let weight = w.connect(
-            &lv.mis_at(w, p.light_rev_pdf_w),
+            &self.light_mis(w, lv.mis_at(w, p.light_rev_pdf_w)),
             light_eta,
             &state.mis_at(w, p.eye_rev_pdf_w),
             eye_eta,
@@ -650,7 +731,8 @@ impl<'a> VertexCm<'a> {
     ) -> Rgb {
         let max_length = self.ctx.max_path_length();
         let mut sum = Rgb::BLACK;
-        grid.query_slot_batches(hit.position, |batch| {
+        // The eye sub-path's own radius: the grid's, or with per-pixel radii another.
+        grid.query_slot_batches_within(hit.position, Within::radius(w.radius), |batch| {
             let within_bounds = |slot: u32| {
                 let segments = vertices[slot as usize]
                     .path_length
@@ -668,7 +750,7 @@ impl<'a> VertexCm<'a> {
                     1.0
                 } else {
                     w.merge(
-                        &lv.mis,
+                        &self.light_mis(w, lv.mis),
                         &state.mis,
                         (eval.pdf_w, eval.rev_pdf_w),
                         w.vm_factor,
@@ -689,7 +771,9 @@ impl<'a> VertexCm<'a> {
         tentative: &mut Tentative<'a>,
         stats: &mut IterationStats,
     ) -> Rgb {
-        let w = &pass.w;
+        // With per-pixel radii, replaced by the sub-path's own at its first non-specular
+        // vertex, before any technique of the sub-path weighs a merge.
+        let mut w = pass.w;
         let camera = &self.ctx.camera;
         let seed = self.ctx.options.seed;
         let light_path = pass.light.for_pixel(pixel);
@@ -704,6 +788,9 @@ impl<'a> VertexCm<'a> {
         let [jx, jy] = sampler.next_2d();
         let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
         let camera_pdf_w = camera.pdf_w(ray.dir);
+        let primary = ray.dir;
+        // Along the sub-path to the current vertex, while all vertices before it are specular.
+        let mut travelled = 0.0;
         let mut state = SubPath {
             ray,
             throughput: Rgb::WHITE,
@@ -722,20 +809,21 @@ impl<'a> VertexCm<'a> {
             sampler.start_vertex(state.path_length);
             stats.rays += 1;
             let Some(hit) = self.scene().intersect(&state.ray) else {
-                color += state.throughput * self.emission(w, &state, None);
+                color += state.throughput * self.emission(&w, &state, None);
                 break;
             };
             let dir = state.ray.dir.normalize();
-            self.arrive(w, &mut state, &hit, false);
+            self.arrive(&w, &mut state, &hit, false);
+            travelled += hit.hit.t * state.ray.dir.length();
             // `upg-camera` merges wherever the sub-path lands: what is merged is the light
             // vertex, reached from the previous eye vertex.
             if let (Some(upg), Some(gathered), Some(prev)) =
                 (&self.upg_merges, gathered, prev.as_ref())
             {
-                color += upg.from_camera(w, prev, hit.position, gathered, tentative, stats)
+                color += upg.from_camera(&w, prev, hit.position, gathered, tentative, stats)
                     * (1.0 / w.light_paths);
             }
-            color += state.throughput * self.emission(w, &state, Some(&hit));
+            color += state.throughput * self.emission(&w, &state, Some(&hit));
             // Light tracing renders everything else from the light side.
             if self.modes.light_trace || state.path_length >= max_length {
                 break;
@@ -746,21 +834,27 @@ impl<'a> VertexCm<'a> {
             state.pending.keep_if(!bsdf.is_delta());
             state.density = NO_DENSITY;
             if !bsdf.is_delta() {
-                state.density = self.density_at(w, hit.position, &mut state);
+                if state.specular {
+                    if let Some(own) = self.eye_weights(&pass.w, travelled, primary) {
+                        w = own;
+                    }
+                }
+                state.density = self.density_at(&w, hit.position, &mut state);
                 if self.modes.vc {
                     color += state.throughput
-                        * self.light_sampling(w, &state, &hit, &bsdf, &mut sampler, stats);
+                        * self.light_sampling(&w, &state, &hit, &bsdf, &mut sampler, stats);
                     for lv in light_path {
                         if lv.path_length + state.path_length + 1 > max_length {
                             break;
                         }
-                        color += state.throughput * self.connect(w, &state, &hit, &bsdf, lv, stats);
+                        color +=
+                            state.throughput * self.connect(&w, &state, &hit, &bsdf, lv, stats);
                     }
                 }
                 match (gathered, self.modes.gather) {
                     (Some(gathered), Gather::Density) => {
                         let merged =
-                            self.merge(w, &state, &bsdf, &hit, gathered.grid, pass.merge_vertices);
+                            self.merge(&w, &state, &bsdf, &hit, gathered.grid, pass.merge_vertices);
                         color += state.throughput * merged * w.vm_normalization;
                         if self.modes.ppm {
                             break;
@@ -769,7 +863,7 @@ impl<'a> VertexCm<'a> {
                     (Some(gathered), Gather::UpgLight) => {
                         if let Some(upg) = &self.upg_merges {
                             let merged = upg.from_light(
-                                w,
+                                &w,
                                 (&state, &hit, &bsdf),
                                 gathered,
                                 tentative,
@@ -791,7 +885,7 @@ impl<'a> VertexCm<'a> {
                     path_length: state.path_length,
                 });
             if self
-                .scatter(w, &mut state, &hit, &bsdf, &mut sampler, false)
+                .scatter(&w, &mut state, &hit, &bsdf, &mut sampler, false)
                 .is_none()
             {
                 break;
@@ -881,6 +975,11 @@ impl Integrator for VertexCm<'_> {
             ),
         ];
         if self.modes.vm {
+            let mode = match self.radius_pixels {
+                Some(k) => format!("per-pixel, {k} pixel footprints"),
+                None => "global".into(),
+            };
+            stats.push(("radius_mode".into(), mode));
             stats.push(("base_radius".into(), self.base_radius.to_string()));
             stats.push(("alpha".into(), self.alpha.to_string()));
         }

@@ -492,12 +492,55 @@ impl Scene {
         &self.materials[index as usize]
     }
 
-    /// The default merge radius: 0.003 x the bounding-sphere diameter, twice SmallVCM's 0.003 x
-    /// the scene-sphere radius (pass `--radius` to match SmallVCM).
-    pub fn default_radius(&self) -> f32 {
-        self.defaults
-            .radius
-            .unwrap_or(0.003 * 2.0 * self.bounding_sphere.1)
+    /// The default merge radius. A radius set in the scene file wins. Otherwise 0.003 x the
+    /// bounding-sphere diameter (twice SmallVCM's 0.003 x the scene-sphere radius; pass
+    /// `--radius` to match SmallVCM), unless that is more than `VIEW_RULE_FACTOR` times the
+    /// same fraction of what `camera` sees: the diagonal of its view at the median distance
+    /// of a grid of primary rays. Then the view's value: a room inside a huge ground plane
+    /// would otherwise merge at a radius set by the plane, tens of times the room's scale.
+    /// The test compares angles, not pixels, so the default does not depend on the
+    /// resolution, and scenes whose bounds are what the camera looks at keep the first rule.
+    pub fn default_radius(&self, camera: &Camera) -> f32 {
+        const FRACTION: f32 = 0.003;
+        // Primary rays per axis traced to see what the camera sees.
+        const VIEW_GRID: usize = 16;
+        // The shipped scenes are within 2.8 of the view's value; a room inside a plane 20
+        // times its size is 20 times beyond it.
+        const VIEW_RULE_FACTOR: f32 = 4.0;
+        if let Some(r) = self.defaults.radius {
+            return r;
+        }
+        let bounding = FRACTION * 2.0 * self.bounding_sphere.1;
+        let (w, h) = (camera.width as f32, camera.height as f32);
+        let on_plane = |x: f32, y: f32| {
+            let dir = camera.generate_ray(x, y).dir;
+            dir / dir.dot(camera.forward())
+        };
+        // The view's diagonal on the plane at distance 1 along the viewing direction.
+        let diagonal = (on_plane(0.0, 0.0) - on_plane(w, h)).length();
+        let mut distances: Vec<f32> = (0..VIEW_GRID * VIEW_GRID)
+            .filter_map(|i| {
+                let x = (i % VIEW_GRID) as f32 + 0.5;
+                let y = (i / VIEW_GRID) as f32 + 0.5;
+                let ray = camera.generate_ray(x * w / VIEW_GRID as f32, y * h / VIEW_GRID as f32);
+                let hit = self.intersect(&ray)?;
+                // Along the viewing direction, as the diagonal is measured.
+                let depth = (hit.position - ray.origin).dot(camera.forward());
+                (depth.is_finite() && depth > 0.0).then_some(depth)
+            })
+            .collect();
+        // A view that is mostly sky says little about the scene's scale.
+        if distances.len() < VIEW_GRID * VIEW_GRID / 4 {
+            return bounding;
+        }
+        let middle = distances.len() / 2;
+        let (_, &mut median, _) = distances.select_nth_unstable_by(middle, f32::total_cmp);
+        let view = FRACTION * diagonal * median;
+        if view > 0.0 && bounding > VIEW_RULE_FACTOR * view {
+            view
+        } else {
+            bounding
+        }
     }
 
     /// Finds a camera by name or by index.
