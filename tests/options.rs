@@ -21,6 +21,7 @@ fn values(name: &str) -> Vec<String> {
         "resolution" => vec!["1x1".into(), "640x480".into(), format!("{u32_max}x1")],
         "beta" => vec!["0".into(), "1".into(), "0.5".into(), f_min, f_max],
         "radius" => vec![f_min, "0.003".into(), "1".into(), f_max],
+        "radius_pixels" => vec![f_min, "0.5".into(), "3".into(), f_max],
         "alpha" => vec![f_min, "0.25".into(), "0.75".into(), "1".into()],
         "max_path_length" | "roulette" => vec!["0".into(), "1".into(), "7".into(), u32_max],
         "min_path_length" => vec!["1".into(), "2".into(), "3".into(), u32_max],
@@ -102,6 +103,16 @@ fn all_options_of_a_technique_together_survive_the_command_line() {
                 let values = values(spec.name);
                 spec.read(&mut o, &values[round.min(values.len() - 1)])
                     .unwrap();
+            }
+            // A per-pixel radius stands in for the global one, without 002's weights: every
+            // other round takes it.
+            if o.radius_pixels.is_some() {
+                if round % 2 == 0 {
+                    o.radius_pixels = None;
+                } else {
+                    o.radius = None;
+                    o.density_mis = None;
+                }
             }
             // 002's weights weigh merges, which no_vm leaves out.
             o.no_vm &= o.density_mis.is_none();
