@@ -59,6 +59,7 @@ EXAMPLES = {
     "resolution": ("pt", (20, 12)),
     "beta": ("bpt", 1.0),
     "radius": ("vcm", 0.02),
+    "radius_pixels": ("vcm", 1.5),
     "alpha": ("vcm", 0.5),
     "max_path_length": ("pt", 5),
     "roulette": ("pt", 4),

@@ -3,6 +3,7 @@
 #![allow(dead_code)]
 
 pub mod browser;
+pub mod chi_square;
 pub mod programs;
 
 use vmerge::accel::AccelKind;
