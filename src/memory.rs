@@ -8,7 +8,7 @@
 //! the layout asked for, and a refusal of two-stage says whether one-stage would fit.
 
 use crate::integrator::subpath::MergeVertex;
-use crate::integrator::vcm::LightVertex;
+use crate::integrator::vcm::{LightVertex, ONE_STAGE_VERTEX_BYTES};
 use crate::options::{MemoryLayout, OptionName, Technique};
 use std::fmt;
 use thiserror::Error;
@@ -40,13 +40,14 @@ fn two_stage_vertex_bytes() -> u64 {
         + 2 * 24
 }
 
-/// Bytes per light vertex of the one-stage layout at its peak, the eye pass: the previous
+/// Bytes per light vertex of the one-stage layout at its peak: in the eye pass, the previous
 /// iteration's vertices as merges read them with their grid, and this iteration's as they
-/// are stored, what a merge reads and the position. At the iteration's end the previous ones
-/// are freed before the grid is built, whose sort buffers take less than they did.
+/// are stored; at the iteration's end, when the previous ones are freed, this iteration's,
+/// the grid being built over them with its sort buffers, then their copy in the grid's order.
 fn one_stage_vertex_bytes() -> u64 {
     let merge = std::mem::size_of::<MergeVertex>() as u64;
-    merge + GRID_BYTES + merge + 12
+    let stored = ONE_STAGE_VERTEX_BYTES as u64;
+    (merge + GRID_BYTES + stored).max(stored + GRID_BYTES + 2 * 24)
 }
 
 /// The parts of a render's memory, in bytes, and the light vertices' layout where it has any.

@@ -34,15 +34,15 @@
 //! layout cannot follow the memory a machine has; a two-stage render that does not fit is
 //! refused with the advice to render one-stage when that would fit (`memory.rs`).
 
-use super::{EyePass, LightChunk, LightPaths, VertexCm, EYE_TASK};
+use super::{EyePass, LightChunk, LightPaths, LightVertex, VertexCm, EYE_TASK};
+use crate::color::Rgb;
 use crate::film::{add_sample, add_splats};
 use crate::hashgrid::HashGrid;
-use crate::integrator::mis::VcmWeights;
+use crate::integrator::mis::{VcmVertex, VcmWeights};
 use crate::integrator::subpath::MergeVertex;
 use crate::integrator::upg::merge::Tentative;
 use crate::integrator::IterationStats;
 use crate::options::DensityMis;
-use crate::color::Rgb;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -63,7 +63,7 @@ pub(super) struct OneStage {
     grid: HashGrid,
     serves: Option<u64>,
     /// This iteration's vertices, in pixel order, and their positions.
-    stored: Vec<MergeVertex>,
+    stored: Vec<Stored>,
     positions: Vec<Vec3>,
     /// The most light vertices held at once and the bytes of their buffers (the grid's own
     /// left out), over the iterations so far.
@@ -71,12 +71,65 @@ pub(super) struct OneStage {
     pub(super) peak_bytes: usize,
 }
 
+/// A light vertex as this iteration stores it for the next one's merges: what a merge reads
+/// ([`MergeVertex`]) without VCM*'s counts, which take no part here.
+#[derive(Clone, Copy)]
+struct Stored {
+    wo: Vec3,
+    throughput: Rgb,
+    path_length: u32,
+    d_vcm: f32,
+    d_vc: f32,
+    d_vm: f32,
+    d_vc_vm: f32,
+}
+
+impl Stored {
+    fn new(v: &LightVertex) -> Self {
+        Stored {
+            wo: v.wo,
+            throughput: v.throughput,
+            path_length: v.path_length,
+            d_vcm: v.mis.d_vcm,
+            d_vc: v.mis.d_vc,
+            d_vm: v.mis.d_vm,
+            d_vc_vm: v.mis.d_vc_vm,
+        }
+    }
+
+    /// The vertex, stored with weights `from`, as a merge with weights `to` reads it: d^VC's
+    /// merge terms scale with mis(eta_VCM) (001 eq. (35)), and d^VM = d^VC / eta_VCM
+    /// (001 eqs. (33), (36)).
+    fn weighed(self, from: &VcmWeights, to: &VcmWeights) -> MergeVertex {
+        let mut mis = VcmVertex {
+            d_vcm: self.d_vcm,
+            d_vc: self.d_vc,
+            d_vm: self.d_vm,
+            d_vc_vm: self.d_vc_vm,
+            ..VcmVertex::default()
+        };
+        if from.vm_factor > 0.0 && to.vm_factor > 0.0 {
+            mis.d_vc_vm *= to.vm_factor / from.vm_factor;
+            mis.d_vm = (mis.d_vc + mis.d_vc_vm) * to.vc_factor;
+        }
+        MergeVertex {
+            wo: self.wo,
+            throughput: self.throughput,
+            path_length: self.path_length,
+            mis,
+        }
+    }
+}
+
+/// Bytes of a light vertex stored for the next iteration: what a merge reads and the position.
+pub const STORED_BYTES: usize = std::mem::size_of::<Stored>() + std::mem::size_of::<Vec3>();
+
 /// What one task of a wave produces.
 #[derive(Default)]
 struct Task {
     chunk: LightChunk,
     positions: Vec<Vec3>,
-    stored: Vec<MergeVertex>,
+    stored: Vec<Stored>,
     stats: IterationStats,
 }
 
@@ -86,7 +139,7 @@ impl Task {
     fn store_path(&mut self) {
         let path = &self.chunk.vertices;
         self.positions.extend(path.iter().map(|v| v.position));
-        self.stored.extend(path.iter().map(MergeVertex::from));
+        self.stored.extend(path.iter().map(Stored::new));
     }
 }
 
@@ -99,16 +152,6 @@ fn weights(vcm: &VertexCm, iteration: u64) -> VcmWeights {
     } else {
         w
     }
-}
-
-/// `v`, stored with weights `from`, as weights `to` weigh it: d^VC's merge terms scale with
-/// mis(eta_VCM) (001 eq. (35)), and d^VM = d^VC / eta_VCM (001 eqs. (33), (36)).
-fn reweigh(from: &VcmWeights, to: &VcmWeights, mut v: MergeVertex) -> MergeVertex {
-    if from.vm_factor > 0.0 && to.vm_factor > 0.0 {
-        v.mis.d_vc_vm *= to.vm_factor / from.vm_factor;
-        v.mis.d_vm = (v.mis.d_vc + v.mis.d_vc_vm) * to.vc_factor;
-    }
-    v
 }
 
 impl OneStage {
@@ -175,7 +218,7 @@ impl OneStage {
                 })
                 .collect();
             stats.dropped_samples += add_splats(frame, &mut tasks, |task| &mut task.chunk.splats);
-            keep(tasks, (positions, stored), &mut stats);
+            keep(tasks, (positions, stored), [end, frame.len()], &mut stats);
         }
         self.measure();
         if merges {
@@ -213,7 +256,8 @@ impl OneStage {
                     task
                 })
                 .collect();
-            keep(tasks, (&mut self.positions, &mut self.stored), &mut stats);
+            let buffers = (&mut self.positions, &mut self.stored);
+            keep(tasks, buffers, [end, paths], &mut stats);
         }
         self.build(&w, &weights(vcm, serves), serves);
         stats
@@ -240,7 +284,7 @@ impl OneStage {
         next.par_extend(
             self.grid
                 .indices()
-                .map(|i| reweigh(from, to, stored[i as usize])),
+                .map(|i| stored[i as usize].weighed(from, to)),
         );
         self.merge_vertices = next;
         self.measure();
@@ -250,9 +294,8 @@ impl OneStage {
 
     /// Records the vertices held now and their buffers' bytes.
     fn measure(&mut self) {
-        let merge = std::mem::size_of::<MergeVertex>();
-        let bytes = self.merge_vertices.capacity() * merge
-            + self.stored.capacity() * merge
+        let bytes = self.merge_vertices.capacity() * std::mem::size_of::<MergeVertex>()
+            + self.stored.capacity() * std::mem::size_of::<Stored>()
             + self.positions.capacity() * std::mem::size_of::<Vec3>();
         let held = self.merge_vertices.len() + self.stored.len();
         self.peak_vertices = self.peak_vertices.max(held);
@@ -260,12 +303,23 @@ impl OneStage {
     }
 }
 
-/// Appends a wave's stored vertices in task order and adds up its counters.
+/// Appends a wave's stored vertices in task order and adds up its counters; `[done, all]`
+/// the paths traced so far and in all. Where the buffers would grow, they make room for the
+/// vertices the paths so far predict and a margin, not twice what they hold.
 fn keep(
     tasks: Vec<Task>,
-    (positions, stored): (&mut Vec<Vec3>, &mut Vec<MergeVertex>),
+    (positions, stored): (&mut Vec<Vec3>, &mut Vec<Stored>),
+    [done, all]: [usize; 2],
     stats: &mut IterationStats,
 ) {
+    let wave: usize = tasks.iter().map(|task| task.stored.len()).sum();
+    let held = stored.len() + wave;
+    if held > stored.capacity() {
+        let predicted = held * all / done.max(1);
+        let room = predicted + predicted / 32 - stored.len();
+        stored.reserve_exact(room);
+        positions.reserve_exact(room);
+    }
     for task in tasks {
         *stats = *stats + task.stats + task.chunk.stats;
         positions.extend_from_slice(&task.positions);

@@ -41,8 +41,8 @@ use crate::options::{MemoryLayout, RenderOptions, Technique};
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
-use rayon::prelude::*;
 use onestage::OneStage;
+use rayon::prelude::*;
 use std::time::Duration;
 
 #[path = "onestage.rs"]
@@ -115,6 +115,8 @@ impl Modes {
 type SubPath = subpath::SubPath<Deferred>;
 /// The light vertex this family stores (its size bounds the memory a render needs).
 pub type LightVertex = subpath::LightVertex<Deferred>;
+/// The bytes of a light vertex `memory = one-stage` stores for the next iteration's merges.
+pub const ONE_STAGE_VERTEX_BYTES: usize = onestage::STORED_BYTES;
 type LightChunk = subpath::LightChunk<Deferred>;
 type LightPaths = subpath::LightPaths<Deferred>;
 
@@ -817,9 +819,7 @@ impl Integrator for VertexCm<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
         let mut buffers = std::mem::take(&mut self.buffers);
         if self.ctx.options.memory == MemoryLayout::OneStage {
-            let stats = buffers
-                .one_stage
-                .render_iteration(self, iteration, frame);
+            let stats = buffers.one_stage.render_iteration(self, iteration, frame);
             self.stored_vertices = buffers.one_stage.stored_vertices();
             self.buffers = buffers;
             return stats;
@@ -900,12 +900,10 @@ impl Integrator for VertexCm<'_> {
 
     fn statistics(&self, elapsed: Duration) -> Vec<(String, String)> {
         let paths = self.light_paths().max(1);
-        let mut stats = vec![
-            (
-                "light_vertices_per_path".into(),
-                format!("{:.3}", self.stored_vertices as f64 / paths as f64),
-            ),
-        ];
+        let mut stats = vec![(
+            "light_vertices_per_path".into(),
+            format!("{:.3}", self.stored_vertices as f64 / paths as f64),
+        )];
         let layout = self.ctx.options.memory;
         if self.modes.vm {
             let one_stage = &self.buffers.one_stage;
@@ -916,7 +914,7 @@ impl Integrator for VertexCm<'_> {
                     self.buffers.peak_bytes,
                 ),
                 MemoryLayout::OneStage => (
-                    std::mem::size_of::<MergeVertex>() + std::mem::size_of::<Vec3>(),
+                    onestage::STORED_BYTES,
                     one_stage.peak_vertices,
                     one_stage.peak_bytes,
                 ),

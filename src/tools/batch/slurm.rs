@@ -681,7 +681,15 @@ mod tests {
             time_limit(&p, &stages[2]),
             Some(Duration::from_secs(34 * 60))
         );
-        let need = crate::memory::estimate(Technique::Vcm, MemoryLayout::TwoStage, 500_000, u32::MAX, 3, 4).total();
+        let need = crate::memory::estimate(
+            Technique::Vcm,
+            MemoryLayout::TwoStage,
+            500_000,
+            u32::MAX,
+            3,
+            4,
+        )
+        .total();
         assert_eq!(
             memory_mib(&p, &stages[2]),
             Some((need + MEMORY_ALLOWANCE).div_ceil(1 << 20))
