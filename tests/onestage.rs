@@ -80,3 +80,30 @@ fn one_stage_image_does_not_depend_on_threads() {
     assert_eq!(differ, 0, "{differ} pixels differ between 1 and 2 threads");
     assert!(one.iter().any(|c| c.average() > 0.0));
 }
+
+/// A continued render retraces the light sub-paths its next iteration merges with: its
+/// iteration is the uninterrupted render's, bit for bit.
+#[test]
+fn a_continued_one_stage_render_is_the_uninterrupted_one() {
+    let scene = load("cornell-box");
+    let o = options(Technique::Vcm, MemoryLayout::OneStage);
+    let [w, h] = o.resolution.expect("a resolution");
+    let integrator = || {
+        let camera = Camera::new(scene.camera(o.camera.as_deref()).unwrap(), w, h);
+        create_integrator(RenderContext {
+            scene: &scene,
+            camera,
+            options: &o,
+        })
+    };
+    let mut frame = vec![Rgb::BLACK; (w * h) as usize];
+    let mut whole = integrator();
+    for iteration in 0..3 {
+        frame.fill(Rgb::BLACK);
+        whole.render_iteration(iteration, &mut frame);
+    }
+    let mut continued = vec![Rgb::BLACK; frame.len()];
+    integrator().render_iteration(2, &mut continued);
+    assert_eq!(continued, frame);
+    assert!(frame.iter().any(|c| c.average() > 0.0));
+}
