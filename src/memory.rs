@@ -1,10 +1,15 @@
 //! The memory a render will need, estimated before it starts and held against a limit (the
 //! machine's available memory unless told otherwise), so that a resolution too large for the
 //! machine is refused with a message rather than aborting in an allocation.
+//!
+//! The merging techniques' light vertices dominate, and how much they take depends on the
+//! layout (`memory`, [`MemoryLayout`]): two-stage keeps every light vertex whole, with what
+//! its BSDF needs, one-stage only what a merge reads (001 sec. 6.2). The estimate is made for
+//! the layout asked for, and a refusal of two-stage says whether one-stage would fit.
 
 use crate::integrator::subpath::MergeVertex;
-use crate::integrator::vcm::LightVertex;
-use crate::options::{OptionName, Technique};
+use crate::integrator::vcm::{LightVertex, ONE_STAGE_VERTEX_BYTES};
+use crate::options::{MemoryLayout, OptionName, Technique};
 use std::fmt;
 use thiserror::Error;
 
@@ -19,10 +24,39 @@ const VERTICES_AFTER_ROULETTE: u64 = 5;
 /// Per worker thread: its stack and its tile buffers.
 const BYTES_PER_THREAD: u64 = 4 << 20;
 
-/// The parts of a render's memory, in bytes.
+/// Bytes of the hash grid per light vertex: its points in cell order (16) and its table
+/// (16-byte slots, at most three per point).
+const GRID_BYTES: u64 = 16 + 48;
+
+/// Bytes per light vertex of the two-stage layout: stored twice (the light pass's chunks and
+/// their concatenation, both kept from one iteration to the next), once more as the merges'
+/// compact copy, their positions, the hash grid and its two sort buffers (24 bytes per point
+/// each: key, index and position; 32 where cell keys take more than 32 bits).
+fn two_stage_vertex_bytes() -> u64 {
+    2 * std::mem::size_of::<LightVertex>() as u64
+        + std::mem::size_of::<MergeVertex>() as u64
+        + 12
+        + GRID_BYTES
+        + 2 * 24
+}
+
+/// Bytes per light vertex of the one-stage layout at its peak: in the eye pass, the previous
+/// iteration's vertices as merges read them with their grid, and this iteration's as they
+/// are stored; at the iteration's end, when the previous ones are freed, this iteration's,
+/// the grid being built over them with its sort buffers, then their copy in the grid's order.
+fn one_stage_vertex_bytes() -> u64 {
+    let merge = std::mem::size_of::<MergeVertex>() as u64;
+    let stored = ONE_STAGE_VERTEX_BYTES as u64;
+    (merge + GRID_BYTES + stored).max(stored + GRID_BYTES + 2 * 24)
+}
+
+/// The parts of a render's memory, in bytes, and the light vertices' layout where it has any.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MemoryNeed {
     pub parts: Vec<(&'static str, u64)>,
+    pub layout: Option<MemoryLayout>,
+    /// For a two-stage render, what the same render would need one-stage.
+    pub one_stage_total: Option<u64>,
 }
 
 impl MemoryNeed {
@@ -41,7 +75,11 @@ impl fmt::Display for MemoryNeed {
             .filter(|(_, bytes)| *bytes > 0)
             .map(|(what, bytes)| format!("{what} {}", Bytes(*bytes)))
             .collect();
-        write!(f, "{} ({})", Bytes(self.total()), parts.join(", "))
+        write!(f, "{} ({}", Bytes(self.total()), parts.join(", "))?;
+        match self.layout {
+            Some(layout) => write!(f, "; {} layout)", layout.name()),
+            None => write!(f, ")"),
+        }
     }
 }
 
@@ -66,34 +104,39 @@ impl fmt::Display for Bytes {
     }
 }
 
-/// The estimate for a render of `pixels` pixels with `technique`, paths of at most
-/// `max_path_length` segments (`u32::MAX` unbounded), roulette from `roulette`, on `threads`
-/// worker threads.
+/// The estimate for a render of `pixels` pixels with `technique`, light vertices kept as
+/// `layout` says, paths of at most `max_path_length` segments (`u32::MAX` unbounded),
+/// roulette from `roulette`, on `threads` worker threads.
 pub fn estimate(
     technique: Technique,
+    layout: MemoryLayout,
     pixels: u64,
     max_path_length: u32,
     roulette: u32,
     threads: usize,
 ) -> MemoryNeed {
     let film = pixels.saturating_mul(FILM_BYTES_PER_PIXEL);
-    // The merging techniques keep one light sub-path per pixel, its vertices stored twice (the
-    // light pass's chunks and their concatenation, both kept from one iteration to the next),
-    // once more as the merges' compact copy, their positions, and the hash grid: its sorted
-    // copy (16 bytes per point), its two sort buffers (24 bytes per point each: key, index
-    // and position; 32 where cell keys take more than 32 bits) and its table (16-byte slots,
-    // at most three per point).
-    let light_vertices = if technique.merges() {
+    // The merging techniques keep one light sub-path per pixel; one-stage, the techniques that
+    // take it (density-estimate merges), the two iterations' compact vertices at once.
+    let one_stage = layout == MemoryLayout::OneStage && technique.shrinks_radius();
+    let vertices = |per_vertex: u64| {
         let per_path = (max_path_length as u64).min(roulette as u64 + VERTICES_AFTER_ROULETTE);
-        let per_vertex = 2 * std::mem::size_of::<LightVertex>() as u64
-            + std::mem::size_of::<MergeVertex>() as u64
-            + 12
-            + 16
-            + 2 * 24
-            + 48;
         pixels.saturating_mul(per_path).saturating_mul(per_vertex)
+    };
+    let (light_vertices, layout, one_stage_total) = if !technique.merges() {
+        (0, None, None)
+    } else if one_stage {
+        (vertices(one_stage_vertex_bytes()), Some(layout), None)
     } else {
-        0
+        let other = technique.shrinks_radius().then(|| {
+            film.saturating_add(vertices(one_stage_vertex_bytes()))
+                .saturating_add((threads as u64).saturating_mul(BYTES_PER_THREAD))
+        });
+        (
+            vertices(two_stage_vertex_bytes()),
+            Some(MemoryLayout::TwoStage),
+            other,
+        )
     };
     MemoryNeed {
         parts: vec![
@@ -101,6 +144,8 @@ pub fn estimate(
             ("light vertices", light_vertices),
             ("threads", (threads as u64).saturating_mul(BYTES_PER_THREAD)),
         ],
+        layout,
+        one_stage_total,
     }
 }
 
@@ -139,11 +184,16 @@ pub fn check(need: &MemoryNeed, limit: Option<u64>) -> Result<(), MemoryError> {
         .parts
         .iter()
         .any(|(what, bytes)| *what == "light vertices" && *bytes > 0);
+    let hint = match need.one_stage_total {
+        Some(total) if total <= limit => ", set `memory` one-stage (it would fit)",
+        _ if merges => " or the path length",
+        _ => "",
+    };
     Err(MemoryError {
         need: need.clone(),
         limit: Bytes(limit),
         source_of_limit,
-        hint: if merges { " or the path length" } else { "" },
+        hint,
     })
 }
 
@@ -181,13 +231,32 @@ mod tests {
 
     #[test]
     fn huge_films_are_refused_without_overflow() {
-        let need = estimate(Technique::Vcm, u64::from(u32::MAX).pow(2), 10, 3, 8);
+        let huge = u64::from(u32::MAX).pow(2);
+        let need = estimate(Technique::Vcm, MemoryLayout::TwoStage, huge, 10, 3, 8);
         assert_eq!(need.total(), u64::MAX);
         let err = check(&need, Some(1 << 30)).unwrap_err().to_string();
         assert!(err.contains("path length"), "{err}");
-        let small = estimate(Technique::Pt, 64 * 64, 10, 3, 2);
+        let small = estimate(Technique::Pt, MemoryLayout::TwoStage, 64 * 64, 10, 3, 2);
         assert_eq!(small.parts[1].1, 0);
         assert_eq!(check(&small, Some(1 << 30)), Ok(()));
+    }
+
+    /// A 4K vcm render: one-stage needs less than half of two-stage, a refusal of two-stage
+    /// names one-stage where that fits, and the message names the layout.
+    #[test]
+    fn one_stage_needs_less_and_is_suggested() {
+        let pixels = 3840 * 2160;
+        let two = estimate(Technique::Vcm, MemoryLayout::TwoStage, pixels, 10, 3, 2);
+        let one = estimate(Technique::Vcm, MemoryLayout::OneStage, pixels, 10, 3, 2);
+        assert!(2 * one.total() < two.total(), "{one} against {two}");
+        assert_eq!(two.one_stage_total, Some(one.total()));
+        let err = check(&two, Some(one.total())).unwrap_err().to_string();
+        assert!(err.contains("one-stage (it would fit)"), "{err}");
+        assert!(err.contains("two-stage layout"), "{err}");
+        let err = check(&two, Some(one.total() - 1)).unwrap_err().to_string();
+        assert!(err.contains("path length"), "{err}");
+        let upg = estimate(Technique::Upg, MemoryLayout::OneStage, pixels, 10, 3, 2);
+        assert_eq!(upg.layout, Some(MemoryLayout::TwoStage));
     }
 
     #[test]

@@ -126,6 +126,38 @@ impl SamplerKind {
     }
 }
 
+/// How the vertex-merging techniques keep their light vertices from one pass to the next.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MemoryLayout {
+    /// All light sub-paths of an iteration first, stored whole (with what their BSDFs need),
+    /// then the eye sub-paths connect and merge with them (001 sec. 2.3).
+    TwoStage,
+    /// Each pixel's light and eye sub-paths together; only what a merge reads is stored, and
+    /// the eye sub-paths merge with the previous iteration's vertices (001 sec. 6.2).
+    OneStage,
+}
+
+impl MemoryLayout {
+    pub const ALL: [MemoryLayout; 2] = [MemoryLayout::TwoStage, MemoryLayout::OneStage];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            MemoryLayout::TwoStage => "two-stage",
+            MemoryLayout::OneStage => "one-stage",
+        }
+    }
+
+    pub fn description(self) -> &'static str {
+        match self {
+            MemoryLayout::TwoStage => "light pass, then eye pass: merges this iteration's vertices",
+            MemoryLayout::OneStage => {
+                "light and eye sub-path per pixel: merges the previous iteration's compact vertices"
+            }
+        }
+    }
+}
+
 /// 002's MIS heuristics for density estimates: the merge at x_i counts n_VM / k_i light
 /// sub-paths instead of n_VM, with k_i the expected number of light vertices in its radius.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -200,6 +232,8 @@ pub struct RenderOptions {
     /// Light sub-paths per iteration, n_VM (the thesis's `--num-photons`); `None` = one per
     /// pixel (001 sec. 2.3).
     pub light_paths: Option<u32>,
+    /// `vcm`, `bpm`, `ppm`: how light vertices are kept (001 sec. 6.2).
+    pub memory: MemoryLayout,
     /// Paths of fewer segments are left out of the image (0 and 1 keep every path; 3 drops
     /// direct light, as 000 Fig. 4.3 does).
     pub min_path_length: u32,
@@ -230,6 +264,7 @@ impl RenderOptions {
         density_map_iterations: 50,
         no_shading_normals: false,
         light_paths: None,
+        memory: MemoryLayout::TwoStage,
         min_path_length: 0,
         sampler: SamplerKind::Sobol,
     };
@@ -849,6 +884,31 @@ pub static OPTIONS: &[OptionSpec] = &[
         },
         invalid: never_invalid,
         expected: "",
+    },
+    OptionSpec {
+        name: "memory",
+        short: None,
+        form: Form::Value {
+            value_name: "MEMORY",
+            choices: Some(|| {
+                MemoryLayout::ALL
+                    .map(|m| (m.name(), m.description()))
+                    .to_vec()
+            }),
+        },
+        help: "how light vertices are kept: one-stage needs a fraction of the memory",
+        takes: Technique::shrinks_radius,
+        write: |o| Some(o.memory.name().into()),
+        parse: |o, s| {
+            o.memory = by_name(&MemoryLayout::ALL, MemoryLayout::name, s)?;
+            Ok(())
+        },
+        invalid: |o| match (o.memory, o.density_mis, o.light_paths) {
+            (MemoryLayout::OneStage, Some(d), _) => Some(format!("one-stage with {}", d.name())),
+            (MemoryLayout::OneStage, _, Some(n)) => Some(format!("one-stage with {n} light paths")),
+            _ => None,
+        },
+        expected: "one-stage with one light sub-path per pixel and no density map",
     },
     OptionSpec {
         name: "density_mis",

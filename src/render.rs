@@ -502,6 +502,7 @@ fn check_memory(
     };
     let need = crate::memory::estimate(
         options.technique,
+        options.memory,
         pixels,
         max_path_length,
         options.roulette,

@@ -381,7 +381,7 @@ fn stale_temporaries_go_and_unknown_materials_are_named() {
 /// renders, through the binary's own arguments, an image whose recorded options are the same.
 #[test]
 fn options_written_as_arguments_come_back_from_the_image() {
-    use vmerge::options::{DensityMis, SamplerKind, Technique, OPTIONS};
+    use vmerge::options::{DensityMis, MemoryLayout, SamplerKind, Technique, OPTIONS};
     let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box/scene.toml");
     for technique in Technique::ALL {
         let all = RenderOptions {
@@ -406,6 +406,8 @@ fn options_written_as_arguments_come_back_from_the_image() {
             density_map_iterations: 2,
             no_shading_normals: true,
             light_paths: Some(20),
+            // One-stage takes neither a density map nor another light path count.
+            memory: MemoryLayout::TwoStage,
             min_path_length: 2,
             sampler: SamplerKind::Independent,
         };

@@ -3,7 +3,9 @@
 //! written as command-line arguments read back as the same options; options a technique does
 //! not take are refused.
 
-use vmerge::options::{OptionError, OptionName, OptionSpec, RenderOptions, Technique, OPTIONS};
+use vmerge::options::{
+    MemoryLayout, OptionError, OptionName, OptionSpec, RenderOptions, Technique, OPTIONS,
+};
 
 /// Values other than the default for each option, as arguments write them: the edges of its
 /// valid range and values inside it. A switch has one, "on".
@@ -37,6 +39,7 @@ fn values(name: &str) -> Vec<String> {
         "upg_packet" => s(&["8"]),
         "sampler" => s(&["independent"]),
         "density_mis" => s(&["vcm+", "vcm*"]),
+        "memory" => s(&["one-stage"]),
         "no_vc" | "no_vm" | "unweighted" | "no_shading_normals" => s(&["true"]),
         other => panic!("no test values for option '{other}': add them"),
     }
@@ -116,6 +119,10 @@ fn all_options_of_a_technique_together_survive_the_command_line() {
             }
             // 002's weights weigh merges, which no_vm leaves out.
             o.no_vm &= o.density_mis.is_none();
+            // One-stage merges take one light sub-path per pixel and no density map.
+            if o.density_mis.is_some() || o.light_paths.is_some() {
+                o.memory = MemoryLayout::TwoStage;
+            }
             assert_eq!(o.validate(), Ok(()), "{technique} {o:?}");
             round_trip(&o);
         }

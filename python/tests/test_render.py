@@ -75,6 +75,7 @@ EXAMPLES = {
     "no_shading_normals": ("pt", True),
     "density_mis": ("vcm", "vcm+"),
     "density_map_iterations": ("vcm", 3),
+    "memory": ("vcm", "one-stage"),
 }
 
 

@@ -238,6 +238,15 @@ impl<P: PendingMis> LightPaths<P> {
             .for_each(|(target, chunk)| target.copy_from_slice(&chunk.vertices));
     }
 
+    /// Holds `vertices` as the one light sub-path every eye sub-path connects to: one-stage
+    /// vertex merging (001 sec. 6.2) keeps only the current pixel's sub-path whole.
+    pub fn hold_one(&mut self, vertices: &[LightVertex<P>]) {
+        self.vertices.clear();
+        self.vertices.extend_from_slice(vertices);
+        self.path_ends.clear();
+        self.path_ends.extend([0, vertices.len()]);
+    }
+
     /// The light sub-path the eye sub-path of `pixel` connects to: the one traced for it when
     /// there is one per pixel, the paths taken in turn when there are fewer, and each pixel's own
     /// when there are more (the rest are merged and splatted only). Every eye sub-path connects

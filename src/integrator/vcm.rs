@@ -15,6 +15,9 @@
 //!    non-specular vertex takes emission, a light sample, connections to its pixel's light
 //!    sub-path and merges with the light vertices around it.
 //!
+//! With `memory = one-stage` the three run per pixel instead, merging with the previous
+//! iteration's light vertices (001 sec. 6.2): `onestage.rs`, which reuses the passes here.
+//!
 //! The weights themselves are in `mis.rs` (001 eqs. 31-47), in SmallVCM's "power already
 //! applied" form, mis(x) = x^beta. Russian roulette is left out of the pdfs the weights use:
 //! weights only need to sum to one over the techniques, and every technique evaluates the same
@@ -36,12 +39,16 @@ use crate::color::Rgb;
 use crate::film::add_sample;
 use crate::hashgrid::{kept, HashGrid, Within};
 use crate::light::Aim;
-use crate::options::{RenderOptions, Technique};
+use crate::options::{MemoryLayout, RenderOptions, Technique};
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
+use onestage::OneStage;
 use rayon::prelude::*;
 use std::time::Duration;
+
+#[path = "onestage.rs"]
+mod onestage;
 
 /// Light paths traced by one parallel task. Fixed, so results do not depend on threads.
 const LIGHT_CHUNK: usize = 256;
@@ -133,6 +140,8 @@ fn median_footprint(scene: &Scene, camera: &crate::scene::Camera) -> Option<f32>
 type SubPath = subpath::SubPath<Deferred>;
 /// The light vertex this family stores (its size bounds the memory a render needs).
 pub type LightVertex = subpath::LightVertex<Deferred>;
+/// The bytes of a light vertex `memory = one-stage` stores for the next iteration's merges.
+pub const ONE_STAGE_VERTEX_BYTES: usize = onestage::STORED_BYTES;
 type LightChunk = subpath::LightChunk<Deferred>;
 type LightPaths = subpath::LightPaths<Deferred>;
 
@@ -146,6 +155,11 @@ struct Buffers {
     /// The light vertices as a density-estimate merge reads them, in the grid's order.
     merge_vertices: Vec<MergeVertex>,
     grid: HashGrid,
+    /// The bytes of the light vertices' buffers after the light pass (the grid's own left
+    /// out), the most over the iterations so far.
+    peak_bytes: usize,
+    /// The light vertices of `memory = one-stage`, which uses none of the above.
+    one_stage: OneStage,
 }
 
 /// What the eye sub-paths of one iteration share.
@@ -899,6 +913,12 @@ impl<'a> VertexCm<'a> {
 impl Integrator for VertexCm<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
         let mut buffers = std::mem::take(&mut self.buffers);
+        if self.ctx.options.memory == MemoryLayout::OneStage {
+            let stats = buffers.one_stage.render_iteration(self, iteration, frame);
+            self.stored_vertices = buffers.one_stage.stored_vertices();
+            self.buffers = buffers;
+            return stats;
+        }
         self.rebuild_density_map(iteration, frame.len(), &mut buffers);
         let w = self.weights(iteration);
         let paths = self.light_paths();
@@ -910,6 +930,8 @@ impl Integrator for VertexCm<'_> {
             positions,
             merge_vertices,
             grid,
+            peak_bytes,
+            ..
         } = &mut buffers;
         light.refill(chunks, frame, &mut stats);
         self.stored_vertices = light.vertices.len();
@@ -927,6 +949,15 @@ impl Integrator for VertexCm<'_> {
                     .map(|i| MergeVertex::from(&vertices[i as usize])),
             );
         }
+        let light_vertex = std::mem::size_of::<LightVertex>();
+        let bytes = chunks
+            .iter()
+            .map(|c| c.vertices.capacity() * light_vertex)
+            .sum::<usize>()
+            + light.vertices.capacity() * light_vertex
+            + positions.capacity() * std::mem::size_of::<Vec3>()
+            + merge_vertices.capacity() * std::mem::size_of::<MergeVertex>();
+        *peak_bytes = (*peak_bytes).max(bytes);
         // Eye pass: one sub-path per pixel, each connecting to its own light sub-path.
         let pass = EyePass {
             w,
@@ -964,16 +995,35 @@ impl Integrator for VertexCm<'_> {
 
     fn statistics(&self, elapsed: Duration) -> Vec<(String, String)> {
         let paths = self.light_paths().max(1);
-        let mut stats = vec![
-            (
-                "light_vertices_per_path".into(),
-                format!("{:.3}", self.stored_vertices as f64 / paths as f64),
-            ),
-            (
+        let mut stats = vec![(
+            "light_vertices_per_path".into(),
+            format!("{:.3}", self.stored_vertices as f64 / paths as f64),
+        )];
+        let layout = self.ctx.options.memory;
+        if self.modes.vm {
+            let one_stage = &self.buffers.one_stage;
+            let (vertex_bytes, peak_vertices, peak_bytes) = match layout {
+                MemoryLayout::TwoStage => (
+                    std::mem::size_of::<LightVertex>(),
+                    self.stored_vertices,
+                    self.buffers.peak_bytes,
+                ),
+                MemoryLayout::OneStage => (
+                    onestage::STORED_BYTES,
+                    one_stage.peak_vertices,
+                    one_stage.peak_bytes,
+                ),
+            };
+            stats.push(("memory_layout".into(), layout.name().into()));
+            stats.push(("light_vertex_bytes".into(), vertex_bytes.to_string()));
+            stats.push(("light_vertices_peak".into(), peak_vertices.to_string()));
+            stats.push(("light_vertex_memory_peak".into(), peak_bytes.to_string()));
+        } else {
+            stats.push((
                 "light_vertex_bytes".into(),
                 std::mem::size_of::<LightVertex>().to_string(),
-            ),
-        ];
+            ));
+        }
         if self.modes.vm {
             let mode = match self.radius_pixels {
                 Some(k) => format!("per-pixel, {k} pixel footprints"),

@@ -121,6 +121,7 @@ fn memory_mib(plan: &Plan, cells: &[usize]) -> Option<u64> {
                     };
                     let need = crate::memory::estimate(
                         o.technique,
+                        o.memory,
                         w as u64 * h as u64,
                         max_path_length,
                         o.roulette,
@@ -616,7 +617,7 @@ pub fn run_one(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::options::Technique;
+    use crate::options::{MemoryLayout, Technique};
 
     #[test]
     fn squeue_and_sacct_states_read_alike() {
@@ -680,7 +681,15 @@ mod tests {
             time_limit(&p, &stages[2]),
             Some(Duration::from_secs(34 * 60))
         );
-        let need = crate::memory::estimate(Technique::Vcm, 500_000, u32::MAX, 3, 4).total();
+        let need = crate::memory::estimate(
+            Technique::Vcm,
+            MemoryLayout::TwoStage,
+            500_000,
+            u32::MAX,
+            3,
+            4,
+        )
+        .total();
         assert_eq!(
             memory_mib(&p, &stages[2]),
             Some((need + MEMORY_ALLOWANCE).div_ceil(1 << 20))
