@@ -903,12 +903,17 @@ pub static OPTIONS: &[OptionSpec] = &[
             o.memory = by_name(&MemoryLayout::ALL, MemoryLayout::name, s)?;
             Ok(())
         },
+        // One-stage re-weighs the stored vertices for the next iteration's global radius; with
+        // a radius per pixel they carry no radius at all (001 sec. 6.1), a pairing not built.
         invalid: |o| match (o.memory, o.density_mis, o.light_paths) {
             (MemoryLayout::OneStage, Some(d), _) => Some(format!("one-stage with {}", d.name())),
             (MemoryLayout::OneStage, _, Some(n)) => Some(format!("one-stage with {n} light paths")),
+            (MemoryLayout::OneStage, _, _) if o.radius_pixels.is_some() => {
+                Some("one-stage with --radius-pixels".into())
+            }
             _ => None,
         },
-        expected: "one-stage with one light sub-path per pixel and no density map",
+        expected: "one-stage with one light sub-path per pixel, no density map and a global radius",
     },
     OptionSpec {
         name: "density_mis",
@@ -1322,6 +1327,17 @@ mod tests {
                 })
             ));
         }
+        let one_stage = RenderOptions {
+            memory: MemoryLayout::OneStage,
+            ..vcm(1.0, None, None)
+        };
+        assert!(matches!(
+            one_stage.validate(),
+            Err(OptionError::OutOfRange {
+                option: OptionName("memory"),
+                ..
+            })
+        ));
         let upg = RenderOptions {
             technique: Technique::Upg,
             ..vcm(1.0, None, None)

@@ -119,8 +119,9 @@ fn all_options_of_a_technique_together_survive_the_command_line() {
             }
             // 002's weights weigh merges, which no_vm leaves out.
             o.no_vm &= o.density_mis.is_none();
-            // One-stage merges take one light sub-path per pixel and no density map.
-            if o.density_mis.is_some() || o.light_paths.is_some() {
+            // One-stage merges take one light sub-path per pixel, no density map and a global
+            // radius.
+            if o.density_mis.is_some() || o.light_paths.is_some() || o.radius_pixels.is_some() {
                 o.memory = MemoryLayout::TwoStage;
             }
             assert_eq!(o.validate(), Ok(()), "{technique} {o:?}");
