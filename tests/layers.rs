@@ -84,7 +84,8 @@ fn named_techniques(file: &str, code: &str) -> Vec<&'static str> {
 /// The techniques a file may name besides itself.
 fn may_name(file: &str) -> &'static [&'static str] {
     match file {
-        "vcm.rs" => &["upg"],
+        // One-stage merging is vcm's own pass (a child module of vcm.rs).
+        "vcm.rs" | "onestage.rs" => &["upg"],
         f if f.starts_with("upg/") => &["upg"],
         _ => &[],
     }
