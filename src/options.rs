@@ -649,21 +649,19 @@ pub static OPTIONS: &[OptionSpec] = &[
             choices: None,
         },
         help: "merge radius per pixel: this many pixel footprints at the first non-specular eye vertex, shrinking like --radius (001 sec. 6.1)",
-        takes: Technique::shrinks_radius,
+        takes: Technique::merges,
         write: |o| o.radius_pixels.map(|k| k.to_string()),
         parse: |o, s| {
             o.radius_pixels = Some(number(s)?);
             Ok(())
         },
-        // The clamped weights of 002's density map do not factor out of the light sub-paths'
-        // quantities, as 001 sec. 6.1 needs; one radius of the two kinds is enough.
+        // One radius of the two kinds is enough.
         invalid: |o| match o.radius_pixels {
             Some(k) if !(k.is_finite() && k > 0.0) => Some(k.to_string()),
             Some(k) if o.radius.is_some() => Some(format!("{k} with --radius")),
-            Some(k) if o.density_mis.is_some() => Some(format!("{k} with --density-mis")),
             _ => None,
         },
-        expected: "a finite number of pixels > 0, without --radius or --density-mis",
+        expected: "a finite number of pixels > 0, without --radius",
     },
     OptionSpec {
         name: "alpha",
@@ -1301,8 +1299,8 @@ mod tests {
         ));
     }
 
-    /// A per-pixel radius is a positive footprint, and is not one radius twice nor 002's
-    /// weights, whose clamps need one radius for the light sub-paths.
+    /// A per-pixel radius is a positive footprint and is not one radius twice; every technique
+    /// that merges takes it, 002's weights too, and one-stage merging refuses it.
     #[test]
     fn radius_pixels_has_a_range_and_excludes_global_radii() {
         let vcm = |radius_pixels, radius, density_mis| RenderOptions {
@@ -1313,11 +1311,13 @@ mod tests {
             ..RenderOptions::DEFAULT
         };
         assert_eq!(vcm(1.5, None, None).validate(), Ok(()));
+        for density in DensityMis::ALL {
+            assert_eq!(vcm(1.5, None, Some(density)).validate(), Ok(()));
+        }
         for bad in [
             vcm(0.0, None, None),
             vcm(f32::NAN, None, None),
             vcm(1.0, Some(0.1), None),
-            vcm(1.0, None, Some(DensityMis::Star)),
         ] {
             assert!(matches!(
                 bad.validate(),
@@ -1338,17 +1338,20 @@ mod tests {
                 ..
             })
         ));
-        let upg = RenderOptions {
-            technique: Technique::Upg,
-            ..vcm(1.0, None, None)
-        };
-        assert!(matches!(
-            upg.validate(),
-            Err(OptionError::NotTaken {
-                option: OptionName("radius_pixels"),
-                ..
-            })
-        ));
+        for technique in Technique::ALL {
+            let o = RenderOptions {
+                technique,
+                ..vcm(1.0, None, None)
+            };
+            let refused = matches!(
+                o.validate(),
+                Err(OptionError::NotTaken {
+                    option: OptionName("radius_pixels"),
+                    ..
+                })
+            );
+            assert_eq!(refused, !technique.merges(), "{technique}");
+        }
     }
 
     #[test]

@@ -322,11 +322,19 @@ impl VcmWeights {
     }
 
     /// The same weights at another radius: what an eye sub-path of its own radius weighs with
-    /// (001 sec. 6.1). VCM's weights only: UPG's clamp and 002's density factors are not
-    /// linear in eta_VCM, so the light sub-paths' quantities could not leave it out.
+    /// (001 sec. 6.1), UPG's clamp and 002's density factors included. Radius-free weights
+    /// ([`Self::radius_free`]) become VCM's at that radius. UPG's clamp and 002's density
+    /// factors are not linear in eta_VCM, so light sub-paths weighed with them cannot leave it
+    /// out: their recursion is re-run at this radius instead ([`super::subpath::replay`]).
     pub fn at_radius(&self, radius: f32) -> Self {
         let both = self.vm_factor > 0.0 || self.radius_free;
-        VcmWeights::new(self.power, radius, self.light_paths, both, both)
+        let area = std::f32::consts::PI * radius * radius;
+        VcmWeights {
+            clamp: self.clamp.map(|(_, paths)| (self.power.mis(area), paths)),
+            density: self.density,
+            connections: self.connections,
+            ..VcmWeights::new(self.power, radius, self.light_paths, both, both)
+        }
     }
 
     /// The weights light sub-paths are traced with when every eye sub-path has its own radius
@@ -434,6 +442,19 @@ impl VcmWeights {
         if self.density == Some(DensityMis::Star) {
             v.inv_k_sum += inv_k;
             v.vertices += 1.0;
+        }
+    }
+
+    /// The density factor rho = mis(1 / k) of a merge at a non-delta surface vertex and its
+    /// 1 / k = `inv_k` (002 eq. (6)), the vertex joining `v`'s VCM* mean ([`Self::visit`]);
+    /// [`NO_DENSITY`] without the density map (`None`).
+    pub fn density_at(&self, v: &mut VcmVertex, inv_k: Option<f32>) -> (f32, f32) {
+        match inv_k {
+            Some(inv_k) => {
+                self.visit(v, inv_k);
+                (self.mis(inv_k), inv_k)
+            }
+            None => NO_DENSITY,
         }
     }
 

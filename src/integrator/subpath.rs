@@ -3,7 +3,7 @@
 //! (`upg/merge.rs`) read back. What a technique keeps per vertex beside it is a type parameter,
 //! `P` (a [`PendingMis`]), so that this layer names no technique.
 
-use super::mis::{VcmVertex, VcmWeights};
+use super::mis::{Arrival, VcmVertex, VcmWeights, VmHere, NO_DENSITY};
 use super::IterationStats;
 use crate::accel::Ray;
 use crate::bsdf::{Bsdf, Normals, TransportMode};
@@ -13,14 +13,145 @@ use crate::frame::Azimuth;
 use crate::scene::{Scene, SurfaceHit};
 use glam::{Vec2, Vec3};
 use rayon::prelude::*;
+use std::ops::ControlFlow;
 
 /// MIS terms a technique keeps per sub-path vertex beside its [`VcmVertex`] whose value only a
 /// use of the vertex decides: a merge at the previous vertex gathered from the other side
 /// (000 eqs. 2.81-2.82).
-pub trait PendingMis: Copy + Send + Sync {
+/// The default is none pending.
+pub trait PendingMis: Copy + Default + Send + Sync {
     /// `v`, the vertex's MIS quantities, with the pending terms added once a use of the vertex
     /// fixes `rev_pdf_w`, the pdf with which it samples its predecessor.
     fn settle(&self, w: &VcmWeights, v: VcmVertex, rev_pdf_w: f32) -> VcmVertex;
+
+    /// The terms of a merge at the vertex being left, deferred to the next vertex: `ratio` is
+    /// what [`VcmWeights::scatter`] returned, `cos_out` the |cos| of the sampled direction.
+    fn leaving(w: &VcmWeights, ratio: f32, cos_out: f32) -> Self;
+
+    /// Carried across a segment, like d^VC (001 eq. (35)).
+    fn arrive(&mut self, a: Arrival);
+
+    /// On arrival: kept only where the vertex reached is a non-delta surface vertex.
+    fn keep_if(&mut self, surface: bool);
+}
+
+/// One step of a light sub-path's MIS recursion (001 eqs. (31)-(36)) with the inputs it takes.
+/// The light pass applies each step as it traces. With a radius per eye sub-path (001 sec. 6.1)
+/// under UPG's clamped acceptance or 002's density factors, whose sums are not linear in
+/// eta_VCM, a light sub-path cannot carry radius-free sums as VCM's c^VC and c^VM do; so its
+/// steps are kept, and every use of the sub-path re-runs them at the radius of the eye
+/// sub-path that joins it ([`replay`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MisStep {
+    /// y_0 on a light: its area pdf and emission pdf (both with the pick), |cos| there (1 for
+    /// infinite lights), and whether it is a delta light (001 eqs. (31)-(33)).
+    Origin {
+        direct_pdf_a: f32,
+        emission_pdf_w: f32,
+        cos_at_light: f32,
+        delta: bool,
+    },
+    /// Arriving at a vertex `distance` away with |cos| `cos` there (`with_distance` false on the
+    /// first segment from an infinite light: 001 sec. 5.1); `surface` when it is a non-delta
+    /// surface vertex at `position`, which is stored and may be merged at.
+    Arrive {
+        distance: f32,
+        cos: f32,
+        with_distance: bool,
+        surface: bool,
+        position: Vec3,
+    },
+    /// Leaving the vertex in a sampled direction: its |cos|, the pdfs of the direction and of
+    /// the reverse, whether the sample was a delta lobe, and whether merging at the vertex is a
+    /// technique.
+    Leave {
+        cos_out: f32,
+        pdf_w: f32,
+        rev_pdf_w: f32,
+        delta: bool,
+        here: VmHere,
+    },
+}
+
+impl MisStep {
+    /// Applies the step with weights `w` to a sub-path's MIS quantities, its pending terms and
+    /// its density factor (rho, 1 / k) at the current vertex. `inv_k` gives 1 / k at a
+    /// position (002; `None` without a density map), asked only at surface vertices.
+    pub fn apply<P: PendingMis>(
+        &self,
+        w: &VcmWeights,
+        mis: &mut VcmVertex,
+        pending: &mut P,
+        density: &mut (f32, f32),
+        inv_k: impl FnOnce(Vec3) -> Option<f32>,
+    ) {
+        match *self {
+            MisStep::Origin {
+                direct_pdf_a,
+                emission_pdf_w,
+                cos_at_light,
+                delta,
+            } => {
+                *mis = w.light_origin(direct_pdf_a, emission_pdf_w, cos_at_light, delta);
+                *pending = P::default();
+                *density = NO_DENSITY;
+            }
+            MisStep::Arrive {
+                distance,
+                cos,
+                with_distance,
+                surface,
+                position,
+            } => {
+                pending.arrive(w.arrive(mis, distance, cos, with_distance));
+                pending.keep_if(surface);
+                *density = if surface {
+                    w.density_at(mis, inv_k(position))
+                } else {
+                    NO_DENSITY
+                };
+            }
+            MisStep::Leave {
+                cos_out,
+                pdf_w,
+                rev_pdf_w,
+                delta,
+                here,
+            } => {
+                if !delta {
+                    *mis = pending.settle(w, *mis, rev_pdf_w);
+                }
+                let merge_here = (here == VmHere::Valid, density.0);
+                let ratio = w.scatter(mis, cos_out, pdf_w, rev_pdf_w, delta, merge_here);
+                *pending = if !delta && here == VmHere::Deferred {
+                    P::leaving(w, ratio, cos_out)
+                } else {
+                    P::default()
+                };
+            }
+        }
+    }
+}
+
+/// Re-runs a light sub-path's steps with weights `w` (an eye sub-path's radius), calling
+/// `visit` with the MIS quantities, pending terms and density factor at each of its surface
+/// vertices, the stored ones, in order, until `visit` breaks. The same [`MisStep::apply`] as
+/// the light pass's, so at the radius the sub-path was traced with it gives what was stored.
+pub fn replay<P: PendingMis>(
+    w: &VcmWeights,
+    steps: &[MisStep],
+    inv_k: impl Fn(Vec3) -> Option<f32>,
+    mut visit: impl FnMut(&VcmVertex, &P, (f32, f32)) -> ControlFlow<()>,
+) {
+    let (mut mis, mut pending, mut density) = (VcmVertex::default(), P::default(), NO_DENSITY);
+    for step in steps {
+        step.apply(w, &mut mis, &mut pending, &mut density, &inv_k);
+        if let MisStep::Arrive { surface: true, .. } = step {
+            if visit(&mis, &pending, density).is_break() {
+                return;
+            }
+        }
+    }
 }
 
 /// A stored light sub-path vertex: everything a connection or a merge needs.
@@ -146,10 +277,13 @@ pub struct EyeVertex<'b> {
 }
 
 /// What one task of the light pass produces: its vertices, where each of its paths ends, its
-/// camera splats and counters.
+/// camera splats and counters; where the paths are re-run at other radii, their MIS steps
+/// ([`MisStep`]) and where each path's end.
 pub struct LightChunk<P> {
     pub vertices: Vec<LightVertex<P>>,
     pub ends: Vec<u32>,
+    pub steps: Vec<MisStep>,
+    pub step_ends: Vec<u32>,
     pub splats: Splats,
     pub stats: IterationStats,
 }
@@ -159,6 +293,8 @@ impl<P> Default for LightChunk<P> {
         LightChunk {
             vertices: Vec::new(),
             ends: Vec::new(),
+            steps: Vec::new(),
+            step_ends: Vec::new(),
             splats: Splats::default(),
             stats: IterationStats::default(),
         }
@@ -170,6 +306,8 @@ impl<P> LightChunk<P> {
     pub fn clear(&mut self) {
         self.vertices.clear();
         self.ends.clear();
+        self.steps.clear();
+        self.step_ends.clear();
         self.splats.clear();
         self.stats = IterationStats::default();
     }
@@ -180,6 +318,10 @@ pub struct LightPaths<P> {
     pub vertices: Vec<LightVertex<P>>,
     /// Where each path's vertices begin, and one past the last path's.
     path_ends: Vec<usize>,
+    /// Where the paths are re-run at other radii: their MIS steps, path after path, and where
+    /// each path's begin (as `path_ends`); empty otherwise.
+    steps: Vec<MisStep>,
+    step_ends: Vec<usize>,
 }
 
 impl<P> Default for LightPaths<P> {
@@ -187,6 +329,8 @@ impl<P> Default for LightPaths<P> {
         LightPaths {
             vertices: Vec::new(),
             path_ends: Vec::new(),
+            steps: Vec::new(),
+            step_ends: Vec::new(),
         }
     }
 }
@@ -204,6 +348,8 @@ impl<P: PendingMis> LightPaths<P> {
         stats.dropped_samples += add_splats(frame, chunks, |chunk| &mut chunk.splats);
         self.path_ends.clear();
         self.path_ends.push(0);
+        self.steps.clear();
+        self.step_ends.clear();
         let mut total = 0;
         for chunk in &*chunks {
             self.path_ends
@@ -211,6 +357,15 @@ impl<P: PendingMis> LightPaths<P> {
             total += chunk.vertices.len();
             stats.rays += chunk.stats.rays;
             stats.dropped_samples += chunk.stats.dropped_samples;
+            if !chunk.step_ends.is_empty() {
+                let start = self.steps.len();
+                if self.step_ends.is_empty() {
+                    self.step_ends.push(0);
+                }
+                self.step_ends
+                    .extend(chunk.step_ends.iter().map(|&e| start + e as usize));
+                self.steps.extend_from_slice(&chunk.steps);
+            }
         }
         let chunks = &*chunks;
         // The copy runs on every thread, into storage of last iteration's length resized
@@ -245,6 +400,77 @@ impl<P: PendingMis> LightPaths<P> {
         self.vertices.extend_from_slice(vertices);
         self.path_ends.clear();
         self.path_ends.extend([0, vertices.len()]);
+        self.steps.clear();
+        self.step_ends.clear();
+    }
+
+    /// The bytes of the kept MIS steps' storage.
+    pub fn step_bytes(&self) -> usize {
+        self.steps.capacity() * std::mem::size_of::<MisStep>()
+            + self.step_ends.capacity() * std::mem::size_of::<usize>()
+    }
+
+    /// The index of the light sub-path the eye sub-path of `pixel` connects to.
+    fn pixel_path(&self, pixel: usize) -> usize {
+        pixel % (self.path_ends.len() - 1).max(1)
+    }
+
+    /// The kept MIS steps of path `path` (none where no steps are kept).
+    fn steps_of(&self, path: usize) -> &[MisStep] {
+        match self.step_ends.get(path..path + 2) {
+            Some(&[start, end]) => &self.steps[start..end],
+            _ => &[],
+        }
+    }
+
+    /// Vertex `index` with its MIS quantities, pending terms and density factor as weights `w`
+    /// give them: its path's steps re-run up to it ([`replay`]). `inv_k` as for
+    /// [`MisStep::apply`].
+    pub fn reweighed(
+        &self,
+        w: &VcmWeights,
+        index: usize,
+        inv_k: impl Fn(Vec3) -> Option<f32>,
+    ) -> LightVertex<P> {
+        // The path whose vertices begin at or before `index` and end after it.
+        let path = self.path_ends.partition_point(|&start| start <= index) - 1;
+        let mut vertex = self.vertices[index];
+        let mut before = index - self.path_ends[path];
+        replay(w, self.steps_of(path), inv_k, |mis, pending, density| {
+            if before > 0 {
+                before -= 1;
+                return ControlFlow::Continue(());
+            }
+            vertex.mis = *mis;
+            vertex.pending = *pending;
+            vertex.rho = density.0;
+            ControlFlow::Break(())
+        });
+        vertex
+    }
+
+    /// [`Self::for_pixel`]'s vertices in order, each [`Self::reweighed`] for weights `w`, handed
+    /// to `visit` until it breaks: one walk along the path.
+    pub fn reweighed_for_pixel(
+        &self,
+        pixel: usize,
+        w: &VcmWeights,
+        inv_k: impl Fn(Vec3) -> Option<f32>,
+        mut visit: impl FnMut(&LightVertex<P>) -> ControlFlow<()>,
+    ) {
+        let mut stored = self.for_pixel(pixel).iter();
+        let steps = self.steps_of(self.pixel_path(pixel));
+        replay(w, steps, inv_k, |mis, pending, density| {
+            let Some(&vertex) = stored.next() else {
+                return ControlFlow::Break(());
+            };
+            visit(&LightVertex {
+                mis: *mis,
+                pending: *pending,
+                rho: density.0,
+                ..vertex
+            })
+        });
     }
 
     /// The light sub-path the eye sub-path of `pixel` connects to: the one traced for it when
@@ -252,7 +478,7 @@ impl<P: PendingMis> LightPaths<P> {
     /// when there are more (the rest are merged and splatted only). Every eye sub-path connects
     /// to one light sub-path either way (n_VC = 1).
     pub fn for_pixel(&self, pixel: usize) -> &[LightVertex<P>] {
-        let path = pixel % (self.path_ends.len() - 1).max(1);
+        let path = self.pixel_path(pixel);
         match self.path_ends.get(path..path + 2) {
             Some(&[start, end]) => &self.vertices[start..end],
             _ => &[],

@@ -28,9 +28,9 @@ use super::density::DensityMap;
 use super::mis::{
     ConnectionPdfs, Gather, Neighbour, Power, VcmVertex, VcmWeights, VmHere, NO_DENSITY,
 };
-use super::subpath::{self, EyeVertex, MergeVertex};
+use super::subpath::{self, EyeVertex, MergeVertex, MisStep, PendingMis};
 use super::upg::acceptance::{Estimator, PacketWidth};
-use super::upg::merge::{Gathered, Tentative, UpgMerges};
+use super::upg::merge::{Gathered, Reweigh, Tentative, UpgMerges};
 use super::upg::{Deferred, UpgCounters};
 use super::{Counters, Integrator, IterationStats, RenderContext};
 use crate::accel::Ray;
@@ -45,6 +45,7 @@ use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
 use onestage::OneStage;
 use rayon::prelude::*;
+use std::ops::ControlFlow;
 use std::time::Duration;
 
 #[path = "onestage.rs"]
@@ -254,7 +255,7 @@ impl<'a> VertexCm<'a> {
             };
         }
         let w = VcmWeights::new(power, radius, paths, self.modes.vc, self.modes.vm);
-        if self.radius_pixels.is_some() {
+        if self.resolves() {
             return w.radius_free();
         }
         match (self.ctx.options.density_mis, &self.density) {
@@ -287,31 +288,62 @@ impl<'a> VertexCm<'a> {
         Some(w.at_radius((k * distance * pixel * shrink).max(1e-7)))
     }
 
+    /// With per-pixel radii, whether light sub-paths carry VCM's c^VC and c^VM, which a use
+    /// resolves at the eye sub-path's radius ([`Self::light_mis`]). Where UPG's clamp or 002's
+    /// density factors make the sums non-linear in eta_VCM, light sub-paths keep their MIS
+    /// steps instead and every use re-runs them at that radius ([`Self::replays`]).
+    fn resolves(&self) -> bool {
+        self.radius_pixels.is_some() && !self.replays()
+    }
+
+    /// With per-pixel radii under UPG's clamp or 002's density factors: light sub-paths keep
+    /// their MIS steps ([`MisStep`]), and each connection, merge and camera splat re-runs them
+    /// with the weights of the eye sub-path that joins them (001 sec. 6.1). Costs a walk along
+    /// the light sub-path per use and the steps' memory, paid only here.
+    fn replays(&self) -> bool {
+        self.radius_pixels.is_some()
+            && (self.modes.gather != Gather::Density || self.density.is_some())
+    }
+
     /// A light vertex's MIS quantities as weights `w` of an eye sub-path take them: with
-    /// per-pixel radii they carry c^VC and c^VM, resolved at the eye sub-path's radius
-    /// (001 eqs. (62)-(63)).
+    /// per-pixel radii and VCM's weights they carry c^VC and c^VM, resolved at the eye
+    /// sub-path's radius (001 eqs. (62)-(63)).
     fn light_mis(&self, w: &VcmWeights, v: VcmVertex) -> VcmVertex {
-        if self.radius_pixels.is_some() {
+        if self.resolves() {
             w.resolve(&v)
         } else {
             v
         }
     }
 
+    /// 1 / k at a position for merges of weights `w` (002 eq. (6)): the density map's lookup
+    /// at `w`'s radius, so the path's radius; `None` without the map.
+    fn inv_k(&self, w: &VcmWeights) -> impl Fn(Vec3) -> Option<f32> + '_ {
+        let (radius, paths) = (w.radius, w.light_paths);
+        move |x| {
+            self.density
+                .as_ref()
+                .and_then(|map| map.inv_expected_count(x, radius, paths))
+        }
+    }
+
     /// The density factor rho = mis(1 / k) of a merge at `x` and its 1 / k (002 eq. (6)),
     /// with `x` joining the sub-path's VCM* mean; [`NO_DENSITY`] without the density map.
     fn density_at(&self, w: &VcmWeights, x: Vec3, state: &mut SubPath) -> (f32, f32) {
-        let inv_k = self
-            .density
-            .as_ref()
-            .and_then(|map| map.inv_expected_count(x, w.radius, w.light_paths));
-        match inv_k {
-            Some(inv_k) => {
-                w.visit(&mut state.mis, inv_k);
-                (w.mis(inv_k), inv_k)
-            }
-            None => NO_DENSITY,
-        }
+        w.density_at(&mut state.mis, self.inv_k(w)(x))
+    }
+
+    /// The light sub-path state `state` with its MIS quantities re-run from `steps` (the
+    /// sub-path's so far) with weights `w`; `state` itself where no steps are kept.
+    fn replayed(&self, w: &VcmWeights, state: &SubPath, steps: &[MisStep]) -> SubPath {
+        let mut replayed = *state;
+        subpath::replay(w, steps, self.inv_k(w), |mis, pending, density| {
+            replayed.mis = *mis;
+            replayed.pending = *pending;
+            replayed.density = density;
+            ControlFlow::Continue(())
+        });
+        replayed
     }
 
     fn scene(&self) -> &'a Scene {
@@ -331,8 +363,9 @@ impl<'a> VertexCm<'a> {
         segments < self.ctx.options.min_path_length
     }
 
-    /// Starts a light sub-path (SmallVCM's GenerateLightSample; 001 eqs. 31-33).
-    fn light_sample(&self, w: &VcmWeights, sampler: &mut Sampler) -> Option<SubPath> {
+    /// Starts a light sub-path (SmallVCM's GenerateLightSample; 001 eqs. 31-33), with the
+    /// step that started its MIS quantities.
+    fn light_sample(&self, w: &VcmWeights, sampler: &mut Sampler) -> Option<(SubPath, MisStep)> {
         let lights = &self.scene().lights;
         let (index, pick) = lights.pick(sampler.next_f32())?;
         let light = lights.get(index);
@@ -348,35 +381,56 @@ impl<'a> VertexCm<'a> {
         } else {
             1.0
         };
-        let origin = if light.is_finite() && !light.is_delta() {
+        let origin_point = if light.is_finite() && !light.is_delta() {
             Ray::spawn(e.position, e.normal, e.dir).origin
         } else {
             e.position
         };
-        Some(SubPath {
-            ray: Ray::new(origin, e.dir),
+        let origin = MisStep::Origin {
+            direct_pdf_a,
+            emission_pdf_w,
+            cos_at_light,
+            delta: light.is_delta(),
+        };
+        let mut state = SubPath {
+            ray: Ray::new(origin_point, e.dir),
             throughput: e.energy / emission_pdf_w,
             path_length: 1,
             finite_light: light.is_finite(),
             specular: false,
             prev_surface: false,
-            mis: w.light_origin(direct_pdf_a, emission_pdf_w, cos_at_light, light.is_delta()),
+            mis: VcmVertex::default(),
             pending: Deferred::NONE,
             density: NO_DENSITY,
-        })
+        };
+        origin.apply(
+            w,
+            &mut state.mis,
+            &mut state.pending,
+            &mut state.density,
+            |_| None,
+        );
+        Some((state, origin))
+    }
+
+    /// The segment that reached a newly found vertex: its length, |cos| at the vertex, and
+    /// whether the distance enters the pdfs (001 sec. 5.1).
+    fn arrival(&self, state: &SubPath, hit: &SurfaceHit, light_side: bool) -> (f32, f32, bool) {
+        let distance = hit.hit.t * state.ray.dir.length();
+        let with_distance = !light_side || state.path_length > 1 || state.finite_light;
+        let cos = hit.ng.dot(-state.ray.dir.normalize()).abs();
+        (distance, cos, with_distance)
     }
 
     /// Distance and cosine updates at a newly found vertex (001 eqs. 34-36, the geometry part).
     fn arrive(&self, w: &VcmWeights, state: &mut SubPath, hit: &SurfaceHit, light_side: bool) {
-        let distance = hit.hit.t * state.ray.dir.length();
-        let with_distance = !light_side || state.path_length > 1 || state.finite_light;
-        let cos = hit.ng.dot(-state.ray.dir.normalize()).abs();
+        let (distance, cos, with_distance) = self.arrival(state, hit, light_side);
         let arrival = w.arrive(&mut state.mis, distance, cos, with_distance);
         state.pending.arrive(arrival);
     }
 
     /// Continues a sub-path by sampling the BSDF (SmallVCM's SampleScattering; 001 eqs. 34-36,
-    /// the sampling part). `None` ends the path.
+    /// the sampling part), returning the MIS step it applied. `None` ends the path.
     fn scatter(
         &self,
         w: &VcmWeights,
@@ -385,7 +439,7 @@ impl<'a> VertexCm<'a> {
         bsdf: &Bsdf,
         sampler: &mut Sampler,
         light_side: bool,
-    ) -> Option<()> {
+    ) -> Option<MisStep> {
         let s = bsdf.sample(sampler.next_choice_2d())?;
         if state.path_length >= self.ctx.options.roulette {
             let q = bsdf.continuation_probability();
@@ -395,23 +449,20 @@ impl<'a> VertexCm<'a> {
             state.throughput /= q;
         }
         let cos_out = bsdf.cos_theta(s.wi);
-        let here = self.modes.merge_leaving(light_side, state.prev_surface);
-        if !s.delta {
-            state.mis = state.mis_at(w, s.rev_pdf_w);
-        }
-        let ratio = w.scatter(
-            &mut state.mis,
+        let step = MisStep::Leave {
             cos_out,
-            s.pdf_w,
-            s.rev_pdf_w,
-            s.delta,
-            (here == VmHere::Valid, state.density.0),
-        );
-        state.pending = if !s.delta && here == VmHere::Deferred {
-            Deferred::new(w, ratio, cos_out)
-        } else {
-            Deferred::NONE
+            pdf_w: s.pdf_w,
+            rev_pdf_w: s.rev_pdf_w,
+            delta: s.delta,
+            here: self.modes.merge_leaving(light_side, state.prev_surface),
         };
+        step.apply(
+            w,
+            &mut state.mis,
+            &mut state.pending,
+            &mut state.density,
+            |_| None,
+        );
         state.prev_surface = !s.delta;
         if !s.delta {
             state.specular = false;
@@ -422,7 +473,7 @@ impl<'a> VertexCm<'a> {
         }
         state.ray = Ray::spawn(hit.position, hit.ng, s.wi);
         state.path_length += 1;
-        Some(())
+        Some(step)
     }
 
     /// Traces the light sub-path `index`; stores its vertices and returns its camera splats.
@@ -441,9 +492,16 @@ impl<'a> VertexCm<'a> {
             index as u64,
             self.light_paths() as u64,
         );
-        let Some(mut state) = self.light_sample(w, &mut sampler) else {
+        let Some((mut state, origin)) = self.light_sample(w, &mut sampler) else {
             return;
         };
+        // Where the path's MIS steps are kept (per-pixel radii re-run them), this path's
+        // begin here.
+        let replays = self.replays();
+        let first_step = chunk.steps.len();
+        if replays {
+            chunk.steps.push(origin);
+        }
         let max_length = self.ctx.max_path_length();
         loop {
             sampler.start_vertex(state.path_length);
@@ -452,14 +510,28 @@ impl<'a> VertexCm<'a> {
                 break;
             };
             let dir = state.ray.dir.normalize();
-            self.arrive(w, &mut state, &hit, true);
+            let (distance, cos, with_distance) = self.arrival(&state, &hit, true);
             let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Importance) else {
                 break;
             };
-            state.pending.keep_if(!bsdf.is_delta());
-            state.density = NO_DENSITY;
+            let arrive = MisStep::Arrive {
+                distance,
+                cos,
+                with_distance,
+                surface: !bsdf.is_delta(),
+                position: hit.position,
+            };
+            arrive.apply(
+                w,
+                &mut state.mis,
+                &mut state.pending,
+                &mut state.density,
+                self.inv_k(w),
+            );
+            if replays {
+                chunk.steps.push(arrive);
+            }
             if !bsdf.is_delta() {
-                state.density = self.density_at(w, hit.position, &mut state);
                 if self.modes.vc || self.modes.vm {
                     chunk.vertices.push(LightVertex {
                         position: hit.position,
@@ -478,17 +550,16 @@ impl<'a> VertexCm<'a> {
                     });
                 }
                 if self.modes.vc || self.modes.light_trace {
-                    self.connect_to_camera(w, &state, &hit, &bsdf, chunk);
+                    self.connect_to_camera(w, (&state, first_step), &hit, &bsdf, chunk);
                 }
             }
             if state.path_length.saturating_add(2) > max_length {
                 break;
             }
-            if self
-                .scatter(w, &mut state, &hit, &bsdf, &mut sampler, true)
-                .is_none()
-            {
-                break;
+            match self.scatter(w, &mut state, &hit, &bsdf, &mut sampler, true) {
+                Some(leave) if replays => chunk.steps.push(leave),
+                Some(_) => {}
+                None => break,
             }
         }
     }
@@ -515,6 +586,9 @@ impl<'a> VertexCm<'a> {
                 for index in start..(start + LIGHT_CHUNK).min(paths) {
                     self.trace_light_path(w, iteration, index, chunk);
                     chunk.ends.push(chunk.vertices.len() as u32);
+                    if self.replays() {
+                        chunk.step_ends.push(chunk.steps.len() as u32);
+                    }
                 }
             });
     }
@@ -545,10 +619,11 @@ impl<'a> VertexCm<'a> {
     }
 
     /// Connects a light vertex to the camera and splats it (t = 1; 001 eqs. 46-47).
+    /// `first_step` is where the sub-path's kept MIS steps begin in `chunk`.
     fn connect_to_camera(
         &self,
         w: &VcmWeights,
-        state: &SubPath,
+        (state, first_step): (&SubPath, usize),
         hit: &SurfaceHit,
         bsdf: &Bsdf,
         chunk: &mut LightChunk,
@@ -576,6 +651,13 @@ impl<'a> VertexCm<'a> {
             // The path's radius: this vertex is its first non-specular one from the camera.
             let own = self.eye_weights(w, dist2.sqrt(), -dir);
             let w = own.as_ref().unwrap_or(w);
+            let replayed;
+            let state = if self.replays() {
+                replayed = self.replayed(w, state, &chunk.steps[first_step..]);
+                &replayed
+            } else {
+                state
+            };
             // Towards the eye lies the camera, which tentative rays cannot leave from.
             let here = self
                 .modes
@@ -733,15 +815,16 @@ impl<'a> VertexCm<'a> {
     }
 
     /// Merges an eye vertex with the light vertices around it by density estimation (001
-    /// eqs. 38-39), not yet normalised by 1 / (pi r^2 n_VM).
+    /// eqs. 38-39), not yet normalised by 1 / (pi r^2 n_VM). `reweigh` re-runs a light
+    /// vertex's MIS quantities at the eye sub-path's radius where they are not kept for it.
     fn merge(
         &self,
         w: &VcmWeights,
         state: &SubPath,
         bsdf: &Bsdf,
         hit: &SurfaceHit,
-        grid: &HashGrid,
-        vertices: &[MergeVertex],
+        (grid, vertices): (&HashGrid, &[MergeVertex]),
+        reweigh: Option<&Reweigh>,
     ) -> Rgb {
         let max_length = self.ctx.max_path_length();
         let mut sum = Rgb::BLACK;
@@ -763,8 +846,12 @@ impl<'a> VertexCm<'a> {
                 let weight = if self.modes.ppm {
                     1.0
                 } else {
+                    let light = match reweigh {
+                        Some(reweigh) => reweigh(w, grid.index_of(slot as usize) as usize).mis,
+                        None => self.light_mis(w, lv.mis),
+                    };
                     w.merge(
-                        &self.light_mis(w, lv.mis),
+                        &light,
                         &state.mis,
                         (eval.pdf_w, eval.rev_pdf_w),
                         w.vm_factor,
@@ -791,9 +878,12 @@ impl<'a> VertexCm<'a> {
         let camera = &self.ctx.camera;
         let seed = self.ctx.options.seed;
         let light_path = pass.light.for_pixel(pixel);
+        let reweigh = |w: &VcmWeights, index: usize| pass.light.reweighed(w, index, self.inv_k(w));
+        let reweigh: Option<&Reweigh> = self.replays().then_some(&reweigh);
         let gathered = pass.grid.map(|grid| Gathered {
             vertices: &pass.light.vertices,
             grid,
+            reweigh,
         });
         let mut sampler =
             Sampler::eye(self.ctx.options.sampler, seed, pass.iteration, pixel as u64);
@@ -857,18 +947,31 @@ impl<'a> VertexCm<'a> {
                 if self.modes.vc {
                     color += state.throughput
                         * self.light_sampling(&w, &state, &hit, &bsdf, &mut sampler, stats);
-                    for lv in light_path {
+                    let connect = |lv: &LightVertex| {
                         if lv.path_length + state.path_length + 1 > max_length {
-                            break;
+                            return ControlFlow::Break(());
                         }
                         color +=
                             state.throughput * self.connect(&w, &state, &hit, &bsdf, lv, stats);
+                        ControlFlow::Continue(())
+                    };
+                    if self.replays() {
+                        pass.light
+                            .reweighed_for_pixel(pixel, &w, self.inv_k(&w), connect);
+                    } else {
+                        let _ = light_path.iter().try_for_each(connect);
                     }
                 }
                 match (gathered, self.modes.gather) {
                     (Some(gathered), Gather::Density) => {
-                        let merged =
-                            self.merge(&w, &state, &bsdf, &hit, gathered.grid, pass.merge_vertices);
+                        let merged = self.merge(
+                            &w,
+                            &state,
+                            &bsdf,
+                            &hit,
+                            (gathered.grid, pass.merge_vertices),
+                            reweigh,
+                        );
                         color += state.throughput * merged * w.vm_normalization;
                         if self.modes.ppm {
                             break;
@@ -956,7 +1059,12 @@ impl Integrator for VertexCm<'_> {
             .sum::<usize>()
             + light.vertices.capacity() * light_vertex
             + positions.capacity() * std::mem::size_of::<Vec3>()
-            + merge_vertices.capacity() * std::mem::size_of::<MergeVertex>();
+            + merge_vertices.capacity() * std::mem::size_of::<MergeVertex>()
+            + chunks
+                .iter()
+                .map(|c| c.steps.capacity() * std::mem::size_of::<MisStep>())
+                .sum::<usize>()
+            + light.step_bytes();
         *peak_bytes = (*peak_bytes).max(bytes);
         // Eye pass: one sub-path per pixel, each connecting to its own light sub-path.
         let pass = EyePass {

@@ -15,16 +15,47 @@ use super::{Deferred, UpgCounters};
 use crate::accel::Ray;
 use crate::bsdf::Bsdf;
 use crate::color::Rgb;
-use crate::hashgrid::{kept, HashGrid};
+use crate::hashgrid::{kept, HashGrid, Within, QUERY_BATCH};
 use crate::sampling::{Rng, Stream};
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
+
+/// A light vertex, by its index, with its MIS quantities re-run for the weights of the eye
+/// sub-path that uses it (per-pixel radii under UPG's clamp or 002's density factors:
+/// [`super::super::subpath::LightPaths::reweighed`]).
+pub type Reweigh<'i> = dyn Fn(&VcmWeights, usize) -> LightVertex<Deferred> + 'i;
 
 /// The light vertices of one iteration and the grid over them.
 #[derive(Clone, Copy)]
 pub struct Gathered<'i> {
     pub vertices: &'i [LightVertex<Deferred>],
     pub grid: &'i HashGrid,
+    /// Where the stored MIS quantities are not the eye sub-path's radius's: the vertices
+    /// re-run for it.
+    pub reweigh: Option<&'i Reweigh<'i>>,
+}
+
+impl Gathered<'_> {
+    /// Light vertex `index` as weights `w` take it.
+    fn vertex(&self, w: &VcmWeights, index: usize) -> LightVertex<Deferred> {
+        match self.reweigh {
+            Some(reweigh) => reweigh(w, index),
+            None => self.vertices[index],
+        }
+    }
+
+    /// Calls `visit` with the indices of the light vertices within `w`'s radius of `q` (the
+    /// path's radius, which may not be the grid's), a batch at a time.
+    fn query(&self, w: &VcmWeights, q: Vec3, mut visit: impl FnMut(&[u32])) {
+        let grid = self.grid;
+        grid.query_slot_batches_within(q, Within::radius(w.radius), |slots| {
+            let mut indices = [0u32; QUERY_BATCH];
+            for (index, &slot) in indices.iter_mut().zip(slots) {
+                *index = grid.index_of(slot as usize);
+            }
+            visit(&indices[..slots.len()]);
+        });
+    }
 }
 
 /// What UPG's merges need of the scene and the options.
@@ -77,7 +108,7 @@ impl<'s> UpgMerges<'s> {
                 && self.keeps(vertices[i - 1].path_length + 1 + state.path_length)
         };
         let mut gather = |i: usize| {
-            let q = &vertices[i - 1];
+            let q = &gathered.vertex(w, i - 1);
             let Some(q_bsdf) = q.bsdf(self.scene) else {
                 return;
             };
@@ -108,7 +139,8 @@ impl<'s> UpgMerges<'s> {
             let roulette = self.roulette_probability(&q_bsdf, q.path_length);
             tentative.push(bound, q.throughput * link.value * (weight / roulette));
         };
-        gathered.grid.query_batches(hit.position, |batch| {
+        // The eye sub-path's radius: every technique of the path weighs with it.
+        gathered.query(w, hit.position, |batch| {
             kept(batch, gathers).for_each(|i| gather(i as usize));
         });
         self.estimate(tentative, stats)
@@ -130,7 +162,7 @@ impl<'s> UpgMerges<'s> {
         let vertices = gathered.vertices;
         let gathers = |i: u32| self.keeps(vertices[i as usize].path_length + 1 + prev.path_length);
         let mut gather = |i: usize| {
-            let photon = &vertices[i];
+            let photon = &gathered.vertex(w, i);
             let Some(p_bsdf) = photon.bsdf(self.scene) else {
                 return;
             };
@@ -170,7 +202,7 @@ impl<'s> UpgMerges<'s> {
                 prev.throughput * photon.throughput * link.value * (weight / roulette),
             );
         };
-        gathered.grid.query_batches(position, |batch| {
+        gathered.query(w, position, |batch| {
             kept(batch, gathers).for_each(|i| gather(i as usize));
         });
         self.estimate(tentative, stats)

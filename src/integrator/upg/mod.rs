@@ -40,23 +40,28 @@ impl Deferred {
         }
     }
 
+}
+
+impl PendingMis for Deferred {
+    fn leaving(w: &VcmWeights, ratio: f32, cos_out: f32) -> Self {
+        Deferred::new(w, ratio, cos_out)
+    }
+
     /// Carried across a segment, like d^VC (001 eq. (35)); the merge vertex is sampled from the
     /// far end, so its area factor takes the distance.
-    pub fn arrive(&mut self, a: Arrival) {
+    fn arrive(&mut self, a: Arrival) {
         self.vm *= a.inv_cos;
         self.g /= a.d2;
     }
 
     /// On arrival: the merge is a technique only if the vertex reached is a non-delta surface
     /// vertex the tentative rays can leave from.
-    pub fn keep_if(&mut self, surface: bool) {
+    fn keep_if(&mut self, surface: bool) {
         if !surface {
             self.vm = 0.0;
         }
     }
-}
 
-impl PendingMis for Deferred {
     /// `v` with the merge's terms added once `rev_pdf_w`, the pdf with which the current vertex
     /// samples the merge vertex, gives its gathering-side area pdf: eta_j in d^VC (001 eq. (35),
     /// 000 eq. 2.81) and 1 in d^VM (001 eq. (36)).
