@@ -22,7 +22,8 @@ use vmerge::integrator::mis::{
     self, BptStep, BptVertex, ConnectionPdfs, Gather, LightSamplePdfs, Neighbour, Power, VcmVertex,
     VcmWeights, VmHere, NO_DENSITY,
 };
-use vmerge::integrator::subpath::PendingMis;
+use std::ops::ControlFlow;
+use vmerge::integrator::subpath::{self, MisStep, PendingMis};
 use vmerge::integrator::upg::Deferred;
 use vmerge::light::Aim;
 use vmerge::options::DensityMis;
@@ -386,11 +387,23 @@ fn connection_pdfs(q: &PathPdfs, s: usize) -> ConnectionPdfs {
     }
 }
 
-/// A sub-path's MIS quantities at a vertex, with UPG's deferred merge.
-#[derive(Clone, Copy, Default)]
+/// A sub-path's MIS quantities at a vertex, with UPG's deferred merge and the density factor
+/// of a merge there.
+#[derive(Clone, Copy)]
 struct State {
     mis: VcmVertex,
     deferred: Deferred,
+    rho: f32,
+}
+
+impl Default for State {
+    fn default() -> Self {
+        State {
+            mis: VcmVertex::default(),
+            deferred: Deferred::NONE,
+            rho: NO_DENSITY.0,
+        }
+    }
 }
 
 impl State {
@@ -447,32 +460,57 @@ fn vcm_weights(
     q: &PathPdfs,
     inv_k: &[f32],
 ) -> (Vec<f32>, Vec<f32>) {
-    vcm_weights_with(None, w, gather, path, q, inv_k)
+    vcm_weights_with(LightSide::Same, w, gather, path, q, &|i, _| {
+        inv_k.get(i).copied()
+    })
 }
 
-/// [`vcm_weights`], with `light_w` (when given) the radius-free weights the light sub-path is
-/// traced with and `w` the eye sub-path's own radius (001 sec. 6.1), as vcm.rs does with
-/// per-pixel radii: the eye sub-path takes `w` from its first non-specular vertex on, and
-/// every use of a light vertex resolves its c^VC, c^VM at the eye's radius.
+/// How the light sub-path meets an eye sub-path of its own radius (001 sec. 6.1).
+#[derive(Clone, Copy)]
+enum LightSide<'a> {
+    /// Both sub-paths weigh with the same weights.
+    Same,
+    /// Traced with these radius-free weights: every use of a light vertex resolves its c^VC,
+    /// c^VM at the eye's radius (001 eqs. (62)-(63)).
+    Resolved(&'a VcmWeights),
+    /// Traced with these weights, its MIS steps kept and re-run with the eye sub-path's
+    /// weights by every use ([`subpath::replay`]), as vcm.rs does under UPG's clamp and
+    /// 002's density factors.
+    Replayed(&'a VcmWeights),
+    /// Traced with these weights and used as stored: what a light sub-path weighed at another
+    /// radius than the eye sub-path's gives (to show the test can fail).
+    Stored(&'a VcmWeights),
+}
+
+/// [`vcm_weights`], with the light sub-path traced and used as `side` says and `w` the eye
+/// sub-path's weights (001 sec. 6.1), as vcm.rs does with per-pixel radii: the eye sub-path
+/// takes `w` from its first non-specular vertex on. `inv_k(i, r)` is x_i's 1 / k for merges
+/// of radius r (002's heuristics), `None` without them.
 fn vcm_weights_with(
-    light_w: Option<&VcmWeights>,
+    side: LightSide,
     w: &VcmWeights,
     gather: Gather,
     path: &FullPath,
     q: &PathPdfs,
-    inv_k: &[f32],
+    inv_k: &dyn Fn(usize, f32) -> Option<f32>,
 ) -> (Vec<f32>, Vec<f32>) {
     let eye_w = w;
     // Each merge's eta is the eye sub-path's, whichever side holds the merge vertex.
-    let w = light_w.unwrap_or(eye_w);
+    let w = match side {
+        LightSide::Same => eye_w,
+        LightSide::Resolved(w) | LightSide::Replayed(w) | LightSide::Stored(w) => w,
+    };
     let k = q.k;
     let l = path.light;
     let surface = |i: usize| (1..k).contains(&i) && q.connectable[i];
-    // A merge's density factor and 1 / k at x_i, as vcm.rs takes them at each surface vertex.
-    let density = |i: usize| match inv_k.get(i) {
-        Some(&inv) if surface(i) => (w.mis(inv), inv),
+    // A vertex's density factor and 1 / k at a radius, as vcm.rs takes them at each surface
+    // vertex.
+    let density_at = |i: usize, radius: f32| match inv_k(i, radius) {
+        Some(inv) if surface(i) => (w.mis(inv), inv),
         _ => NO_DENSITY,
     };
+    // The eye sub-path's (and a merge's, made at an eye vertex) at the eye's radius.
+    let density = |i: usize| density_at(i, eye_w.radius);
     let rho = |i: usize| density(i).0;
     let neighbour = |i: usize| Neighbour::surface_if(surface(i));
     let merge_valid = |j: usize| {
@@ -486,7 +524,16 @@ fn vcm_weights_with(
         };
         eye_w.eta_if(merge_valid(j), w.mis(1.0 / gather_pdf))
     };
+    // The light sub-path at the radius it is traced with, and its MIS steps as vcm.rs keeps
+    // them.
     let mut light = vec![State::default(); k];
+    let origin = MisStep::Origin {
+        direct_pdf_a: l.pick * l.pdf_a,
+        emission_pdf_w: l.pick * l.emission_pdf_w,
+        cos_at_light: if l.infinite { 1.0 } else { l.cos_at_light },
+        delta: l.delta,
+    };
+    let mut steps = vec![origin];
     let mut state = State {
         mis: w.light_origin(
             l.pick * l.pdf_a,
@@ -494,32 +541,65 @@ fn vcm_weights_with(
             if l.infinite { 1.0 } else { l.cos_at_light },
             l.delta,
         ),
-        deferred: Deferred::NONE,
+        ..State::default()
     };
     #[allow(clippy::needless_range_loop)] // i indexes several arrays of the path
     for i in 1..k {
-        state.arrive(
-            w,
-            q.dist2[i - 1].sqrt(),
-            q.cos_prev[i],
-            !(i == 1 && l.infinite),
-        );
+        let (distance, cos, with_distance) =
+            (q.dist2[i - 1].sqrt(), q.cos_prev[i], !(i == 1 && l.infinite));
+        state.arrive(w, distance, cos, with_distance);
+        steps.push(MisStep::Arrive {
+            distance,
+            cos,
+            with_distance,
+            surface: surface(i),
+            position: path.positions[i],
+        });
         state.deferred.keep_if(surface(i));
-        if surface(i) && !inv_k.is_empty() {
-            w.visit(&mut state.mis, inv_k[i]);
+        let (light_rho, light_inv_k) = density_at(i, w.radius);
+        if surface(i) && inv_k(i, w.radius).is_some() {
+            w.visit(&mut state.mis, light_inv_k);
         }
+        state.rho = light_rho;
         light[i] = state;
         if i + 1 < k {
             let here = gather.merge_at(neighbour(i - 1), Neighbour::Unknown);
             let delta = !q.connectable[i];
             let (cos, pdf, rev) = (q.cos_next[i], q.light_w[i], q.eye_w[i]);
-            state.scatter(w, cos, pdf, rev, delta, (here, rho(i)));
+            steps.push(MisStep::Leave {
+                cos_out: cos,
+                pdf_w: pdf,
+                rev_pdf_w: rev,
+                delta,
+                here,
+            });
+            state.scatter(w, cos, pdf, rev, delta, (here, light_rho));
         }
+    }
+    if let LightSide::Replayed(_) = side {
+        // Each surface vertex in turn, found by its position for the density lookup.
+        let vertex_at = |x: Vec3| (1..k).find(|&i| path.positions[i] == x);
+        let mut surfaces = (1..k).filter(|&i| surface(i));
+        subpath::replay(
+            eye_w,
+            &steps,
+            |x| inv_k(vertex_at(x)?, eye_w.radius),
+            |mis, pending: &Deferred, (rho, _)| {
+                let i = surfaces.next().expect("a visit per surface vertex");
+                light[i] = State {
+                    mis: *mis,
+                    deferred: *pending,
+                    rho,
+                };
+                ControlFlow::Continue(())
+            },
+        );
+        assert_eq!(surfaces.next(), None, "a visit per surface vertex");
     }
     let mut eye = vec![State::default(); k + 1];
     let mut state = State {
         mis: w.camera_origin(q.camera_pdf_w),
-        deferred: Deferred::NONE,
+        ..State::default()
     };
     let mut w = w;
     for i in (1..k).rev() {
@@ -529,8 +609,8 @@ fn vcm_weights_with(
             w = eye_w;
         }
         state.deferred.keep_if(surface(i));
-        if surface(i) && !inv_k.is_empty() {
-            w.visit(&mut state.mis, inv_k[i]);
+        if let (true, Some(inv)) = (surface(i), inv_k(i, eye_w.radius)) {
+            w.visit(&mut state.mis, inv);
         }
         eye[i] = state;
         let here = gather.merge_at(Neighbour::Unknown, neighbour(i + 1));
@@ -554,7 +634,7 @@ fn vcm_weights_with(
     let w = eye_w;
     let light_at = |i: usize, rev_pdf_w: f32| {
         let v = light[i].at(w, rev_pdf_w);
-        if light_w.is_some() {
+        if let LightSide::Resolved(_) = side {
             w.resolve(&v)
         } else {
             v
@@ -578,7 +658,7 @@ fn vcm_weights_with(
                 let rev = q.eye_w[k - 1];
                 w.to_camera(
                     &light_at(k - 1, rev),
-                    eta(k - 1) * rho(k - 1),
+                    eta(k - 1) * light[k - 1].rho,
                     camera_pdf_a,
                     rev,
                 )
@@ -586,7 +666,7 @@ fn vcm_weights_with(
                 let p = connection_pdfs(q, s);
                 w.connect(
                     &light_at(s - 1, p.light_rev_pdf_w),
-                    eta(s - 1) * rho(s - 1),
+                    eta(s - 1) * light[s - 1].rho,
                     &eye[s].at(w, p.eye_rev_pdf_w),
                     eta(s) * rho(s),
                     &p,
@@ -650,6 +730,10 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
     };
     let (mut specular, mut merged, mut clamped, mut shared_merges) = (0, 0, 0, 0);
     let mut per_pixel_mixed = 0;
+    let (mut replay_mixed, mut replay_needed) = (
+        std::collections::HashMap::<&str, usize>::new(),
+        std::collections::HashMap::<&str, usize>::new(),
+    );
     let mut reweighted = std::collections::HashMap::<&str, usize>::new();
     for path in &paths {
         let q = evaluate(&setup, path);
@@ -758,8 +842,14 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                     VcmWeights::new(power, gather_radius, setup.n(), true, true).radius_free();
                 let radius = 10f32.powf(-3.0 * rng.next_f32());
                 let eye_w = light_w.at_radius(radius);
-                let (vc, vm) =
-                    vcm_weights_with(Some(&light_w), &eye_w, Gather::Density, path, &q, &[]);
+                let (vc, vm) = vcm_weights_with(
+                    LightSide::Resolved(&light_w),
+                    &eye_w,
+                    Gather::Density,
+                    path,
+                    &q,
+                    &|_, _| None,
+                );
                 let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
                 assert!(
                     (sum - 1.0).abs() < 1e-4,
@@ -769,6 +859,60 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                 );
                 if vm.iter().any(|&m| m > 1e-3) && vc.iter().any(|&c| c > 1e-3) {
                     per_pixel_mixed += 1;
+                }
+            }
+            // 001 sec. 6.1 where a light sub-path cannot carry radius-free sums: UPG's clamp and
+            // 002's density factors. The light sub-path is traced at a global radius; every
+            // technique re-runs its steps at the eye sub-path's own radius, drawn at random over
+            // three decades up to radii where the clamp binds. 1 / k follows a fixed density
+            // per vertex, clamped to [1, n_VM] as the density map's lookup is.
+            let density: Vec<f32> = (0..=q.k)
+                .map(|_| 10f32.powf(2.0 + 5.0 * rng.next_f32()))
+                .collect();
+            let n = setup.n();
+            let inv_k_at = |i: usize, r: f32| {
+                let k = density[i] * std::f32::consts::PI * r * r;
+                Some(1.0 / k.clamp(1.0, n))
+            };
+            for (mode, gather, density) in [
+                ("upg", Gather::UpgLight, None),
+                ("upg-camera", Gather::UpgCamera, None),
+                ("vcm+", Gather::Density, Some(DensityMis::Plus)),
+                ("vcm*", Gather::Density, Some(DensityMis::Star)),
+            ] {
+                for gather_radius in [1e-2, 0.1] {
+                    let light_w = match density {
+                        Some(d) => VcmWeights::new(power, gather_radius, n, true, true)
+                            .with_density(d),
+                        None => VcmWeights::clamped(power, gather_radius, n),
+                    };
+                    let radius = 10f32.powf(-3.0 * rng.next_f32());
+                    let eye_w = light_w.at_radius(radius);
+                    let inv_k: &dyn Fn(usize, f32) -> Option<f32> = match density {
+                        Some(_) => &inv_k_at,
+                        None => &|_, _| None,
+                    };
+                    let sum = |side| {
+                        let (vc, vm) = vcm_weights_with(side, &eye_w, gather, path, &q, inv_k);
+                        let sum = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
+                        (sum, vc, vm)
+                    };
+                    let (replayed, vc, vm) = sum(LightSide::Replayed(&light_w));
+                    assert!(
+                        (replayed - 1.0).abs() < 1e-4,
+                        "{name}: per-pixel {mode} weights of a {}-segment path sum to \
+                         {replayed} (beta {beta}, light r {gather_radius}, eye r {radius}): \
+                         VC {vc:?} VM {vm:?}",
+                        q.k
+                    );
+                    if vm.iter().any(|&m| m > 1e-3) && vc.iter().any(|&c| c > 1e-3) {
+                        *replay_mixed.entry(mode).or_insert(0) += 1;
+                    }
+                    // The light sub-path as traced, at the global radius, does not sum to 1.
+                    let (stored, _, _) = sum(LightSide::Stored(&light_w));
+                    if (stored - 1.0).abs() > 1e-3 {
+                        *replay_needed.entry(mode).or_insert(0) += 1;
+                    }
                 }
             }
             // VC alone is BPT: the two recursions give the same weights.
@@ -786,6 +930,21 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
         per_pixel_mixed > 0,
         "{name}: no per-pixel radius weighed merges against connections"
     );
+    for mode in ["upg", "upg-camera", "vcm+", "vcm*"] {
+        let (mixed, needed) = (
+            replay_mixed.get(mode).copied().unwrap_or(0),
+            replay_needed.get(mode).copied().unwrap_or(0),
+        );
+        eprintln!("{name}: per-pixel {mode}: {mixed} mixed, {needed} needed the replay");
+        assert!(
+            mixed > 0,
+            "{name}: no per-pixel {mode} radius weighed merges against connections"
+        );
+        assert!(
+            needed > 0,
+            "{name}: per-pixel {mode}: the stored light sub-path always summed to 1"
+        );
+    }
     assert!(clamped > 0, "{name}: the clamp never bound");
     for mode in [DensityMis::Plus, DensityMis::Star] {
         assert!(

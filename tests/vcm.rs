@@ -1,10 +1,11 @@
 //! Vertex connection and merging: the furnace for ppm, bpm and vcm, vcm without merging is
-//! bpt, and vcm converges to bpt as its radius shrinks.
+//! bpt, and vcm converges to bpt as its radius shrinks; with a merge radius per pixel, the
+//! same and the furnace and bpt's image for upg and the density map's weights.
 
 mod common;
 
 use common::{assert_agree, floor_view, load, options, render_stats, PixelStats};
-use vmerge::options::{RenderOptions, Technique};
+use vmerge::options::{DensityMis, RenderOptions, Technique};
 
 /// Radiance 1 everywhere: within 1% (merging at a radius of 1.5% of the box's side is biased
 /// only in the thin bands along its edges), with a standard error below 0.2% so the test can
@@ -187,6 +188,42 @@ fn shipped_scenes_keep_the_bounding_sphere_default_radius() {
 #[test]
 fn per_pixel_radius_passes_the_furnace() {
     assert_merging_furnace(|o| o.radius_pixels = Some(1.0));
+}
+
+/// Per-pixel radii where light sub-paths cannot carry radius-free sums and re-run their MIS
+/// steps at every eye sub-path's radius instead: upg (clamped acceptance, 000 eq. 2.80) and vcm
+/// with 002's VCM* (density factors) in the furnace, within 1% with a standard error below
+/// 0.2%. Two pixel footprints, so that the density map's k exceeds 1 in places.
+#[test]
+fn per_pixel_radius_with_upg_and_the_density_map_passes_the_furnace() {
+    let scene = load("furnace");
+    for (technique, density) in [
+        (Technique::Upg, None),
+        (Technique::Vcm, Some(DensityMis::Star)),
+    ] {
+        let mut o = options(technique, 32);
+        o.radius_pixels = Some(2.0);
+        o.density_mis = density;
+        let stats = render_stats(&scene, &o, 128);
+        let (mean, se) = (stats.image_mean(), stats.image_se());
+        assert!(se < 0.002, "{technique:?} {density:?}: standard error {se}");
+        assert!(
+            (mean - 1.0).abs() < 0.01,
+            "{technique:?} {density:?}: furnace mean {mean} (se {se})"
+        );
+    }
+}
+
+/// upg is unbiased at any radius, so with a radius per pixel too: per pixel, its image agrees
+/// with bpt's (the statistic of the BPT tests: means and the standardised difference).
+#[test]
+fn upg_with_per_pixel_radii_agrees_with_bpt() {
+    let scene = load("cornell-glossy");
+    let bpt = render_stats(&scene, &floor_view(Technique::Bpt, 16), 1024);
+    let mut o = floor_view(Technique::Upg, 16);
+    o.radius_pixels = Some(2.0);
+    let upg = render_stats(&scene, &o, 512);
+    assert_agree("upg --radius-pixels 2 vs bpt", &upg, &bpt);
 }
 
 /// vcm with per-pixel radii shrinking (alpha = 0.75) approaches bpt's image as the global
