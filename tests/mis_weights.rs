@@ -935,7 +935,6 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
             replay_mixed.get(mode).copied().unwrap_or(0),
             replay_needed.get(mode).copied().unwrap_or(0),
         );
-        eprintln!("{name}: per-pixel {mode}: {mixed} mixed, {needed} needed the replay");
         assert!(
             mixed > 0,
             "{name}: no per-pixel {mode} radius weighed merges against connections"
