@@ -17,12 +17,12 @@
 mod common;
 
 use glam::Vec3;
+use std::ops::ControlFlow;
 use vmerge::bsdf::{Bsdf, MaterialKind, TransportMode};
 use vmerge::integrator::mis::{
     self, BptStep, BptVertex, ConnectionPdfs, Gather, LightSamplePdfs, Neighbour, Power, VcmVertex,
     VcmWeights, VmHere, NO_DENSITY,
 };
-use std::ops::ControlFlow;
 use vmerge::integrator::subpath::{self, MisStep, PendingMis};
 use vmerge::integrator::upg::Deferred;
 use vmerge::light::Aim;
@@ -545,8 +545,11 @@ fn vcm_weights_with(
     };
     #[allow(clippy::needless_range_loop)] // i indexes several arrays of the path
     for i in 1..k {
-        let (distance, cos, with_distance) =
-            (q.dist2[i - 1].sqrt(), q.cos_prev[i], !(i == 1 && l.infinite));
+        let (distance, cos, with_distance) = (
+            q.dist2[i - 1].sqrt(),
+            q.cos_prev[i],
+            !(i == 1 && l.infinite),
+        );
         state.arrive(w, distance, cos, with_distance);
         steps.push(MisStep::Arrive {
             distance,
@@ -882,8 +885,9 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
             ] {
                 for gather_radius in [1e-2, 0.1] {
                     let light_w = match density {
-                        Some(d) => VcmWeights::new(power, gather_radius, n, true, true)
-                            .with_density(d),
+                        Some(d) => {
+                            VcmWeights::new(power, gather_radius, n, true, true).with_density(d)
+                        }
                         None => VcmWeights::clamped(power, gather_radius, n),
                     };
                     let radius = 10f32.powf(-3.0 * rng.next_f32());

@@ -39,7 +39,6 @@ impl Deferred {
             g: w.mis(cos_out),
         }
     }
-
 }
 
 impl PendingMis for Deferred {
