@@ -23,7 +23,8 @@
 //! every insertion a 64 KiB bit set, small enough to stay cached, marks the blocks whose
 //! largest count could give k > 1 at the first radius; a lookup in an unmarked block answers 1
 //! without the probe while the radius is at most the first (it shrinks: k only falls). The
-//! answers are the probe's exactly (tested below).
+//! answers are the probe's exactly (tested below). With per-pixel radii each lookup takes the
+//! path's radius, which may exceed the first: those lookups always probe.
 //!
 //! [`VcmWeights::with_density`]: super::mis::VcmWeights::with_density
 

@@ -280,7 +280,10 @@ impl<'a> VertexCm<'a> {
     /// so their weights sum to one: eye sub-paths at their first non-specular vertex
     /// ([`Self::trace_eye_path`]), the light tracer's splat at the light vertex it sees
     /// ([`Self::connect_to_camera`]). Techniques whose eye sub-path ends before that vertex
-    /// would need none: eye sub-paths hold no merge term before it.
+    /// would need none: eye sub-paths hold no merge term before it. What an eye sub-path
+    /// joins takes its weights too: the light sub-paths' quantities (resolved, or re-run:
+    /// [`Self::replays`]), the density map's lookups ([`Self::inv_k`]), and UPG's grid query
+    /// and tentative rays (`upg/merge.rs`, at `w.radius`). UPG's radius does not shrink.
     fn eye_weights(&self, w: &VcmWeights, distance: f32, dir: Vec3) -> Option<VcmWeights> {
         let k = self.radius_pixels?;
         let pixel = (1.0 / self.ctx.camera.pdf_w(dir)).sqrt();
@@ -815,17 +818,19 @@ impl<'a> VertexCm<'a> {
     }
 
     /// Merges an eye vertex with the light vertices around it by density estimation (001
-    /// eqs. 38-39), not yet normalised by 1 / (pi r^2 n_VM). `reweigh` re-runs a light
-    /// vertex's MIS quantities at the eye sub-path's radius where they are not kept for it.
+    /// eqs. 38-39), not yet normalised by 1 / (pi r^2 n_VM). `gathered` gives the grid and,
+    /// where the light vertices' MIS quantities are not kept for the eye sub-path's radius,
+    /// re-runs them.
     fn merge(
         &self,
         w: &VcmWeights,
         state: &SubPath,
         bsdf: &Bsdf,
         hit: &SurfaceHit,
-        (grid, vertices): (&HashGrid, &[MergeVertex]),
-        reweigh: Option<&Reweigh>,
+        gathered: Gathered,
+        vertices: &[MergeVertex],
     ) -> Rgb {
+        let grid = gathered.grid;
         let max_length = self.ctx.max_path_length();
         let mut sum = Rgb::BLACK;
         // The eye sub-path's own radius: the grid's, or with per-pixel radii another.
@@ -846,7 +851,7 @@ impl<'a> VertexCm<'a> {
                 let weight = if self.modes.ppm {
                     1.0
                 } else {
-                    let light = match reweigh {
+                    let light = match gathered.reweigh {
                         Some(reweigh) => reweigh(w, grid.index_of(slot as usize) as usize).mis,
                         None => self.light_mis(w, lv.mis),
                     };
@@ -964,14 +969,8 @@ impl<'a> VertexCm<'a> {
                 }
                 match (gathered, self.modes.gather) {
                     (Some(gathered), Gather::Density) => {
-                        let merged = self.merge(
-                            &w,
-                            &state,
-                            &bsdf,
-                            &hit,
-                            (gathered.grid, pass.merge_vertices),
-                            reweigh,
-                        );
+                        let merged =
+                            self.merge(&w, &state, &bsdf, &hit, gathered, pass.merge_vertices);
                         color += state.throughput * merged * w.vm_normalization;
                         if self.modes.ppm {
                             break;
