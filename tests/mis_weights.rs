@@ -912,6 +912,33 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                     if vm.iter().any(|&m| m > 1e-3) && vc.iter().any(|&c| c > 1e-3) {
                         *replay_mixed.entry(mode).or_insert(0) += 1;
                     }
+                    // Re-run at the radius it was traced with, the light sub-path gives the
+                    // weights it gives as traced.
+                    let (traced, traced_vc, traced_vm) = {
+                        let (vc, vm) =
+                            vcm_weights_with(LightSide::Same, &light_w, gather, path, &q, inv_k);
+                        (vc.iter().sum::<f32>() + vm.iter().sum::<f32>(), vc, vm)
+                    };
+                    let (again_vc, again_vm) = vcm_weights_with(
+                        LightSide::Replayed(&light_w),
+                        &light_w,
+                        gather,
+                        path,
+                        &q,
+                        inv_k,
+                    );
+                    let same = |a: &[f32], b: &[f32]| {
+                        a.iter()
+                            .zip(b)
+                            .all(|(x, y)| (x - y).abs() <= 1e-6 * x.abs().max(1.0))
+                    };
+                    assert!(
+                        (traced - 1.0).abs() < 1e-4
+                            && same(&traced_vc, &again_vc)
+                            && same(&traced_vm, &again_vm),
+                        "{name}: {mode} re-run at its own radius: VC {again_vc:?} VM \
+                         {again_vm:?}, traced VC {traced_vc:?} VM {traced_vm:?}"
+                    );
                     // The light sub-path as traced, at the global radius, does not sum to 1.
                     let (stored, _, _) = sum(LightSide::Stored(&light_w));
                     if (stored - 1.0).abs() > 1e-3 {
