@@ -391,7 +391,7 @@ fn options_written_as_arguments_come_back_from_the_image() {
             resolution: Some([8, 6]),
             beta: 1.5,
             radius: Some(0.07),
-            // Excludes `radius` and `density_mis` (tests/vcm.rs renders with it).
+            // Excludes `radius` (tests/vcm.rs renders with it).
             radius_pixels: None,
             alpha: Some(0.5),
             max_path_length: Some(6),
