@@ -556,7 +556,6 @@ fn vcm_weights_with(
             cos,
             with_distance,
             surface: surface(i),
-            position: path.positions[i],
         });
         state.deferred.keep_if(surface(i));
         let (light_rho, light_inv_k) = density_at(i, w.radius);
@@ -580,13 +579,13 @@ fn vcm_weights_with(
         }
     }
     if let LightSide::Replayed(_) = side {
-        // Each surface vertex in turn, found by its position for the density lookup.
-        let vertex_at = |x: Vec3| (1..k).find(|&i| path.positions[i] == x);
-        let mut surfaces = (1..k).filter(|&i| surface(i));
+        // Each surface vertex in turn.
+        let surface_vertices: Vec<usize> = (1..k).filter(|&i| surface(i)).collect();
+        let mut surfaces = surface_vertices.iter().copied();
         subpath::replay(
             eye_w,
             &steps,
-            |x| inv_k(vertex_at(x)?, eye_w.radius),
+            |n| inv_k(*surface_vertices.get(n)?, eye_w.radius),
             |mis, pending: &Deferred, (rho, _)| {
                 let i = surfaces.next().expect("a visit per surface vertex");
                 light[i] = State {

@@ -53,13 +53,13 @@ pub enum MisStep {
     },
     /// Arriving at a vertex `distance` away with |cos| `cos` there (`with_distance` false on the
     /// first segment from an infinite light: 001 sec. 5.1); `surface` when it is a non-delta
-    /// surface vertex at `position`, which is stored and may be merged at.
+    /// surface vertex, which is stored (and holds the position the density map is read at)
+    /// and may be merged at.
     Arrive {
         distance: f32,
         cos: f32,
         with_distance: bool,
         surface: bool,
-        position: Vec3,
     },
     /// Leaving the vertex in a sampled direction: its |cos|, the pdfs of the direction and of
     /// the reverse, whether the sample was a delta lobe, and whether merging at the vertex is a
@@ -75,15 +75,15 @@ pub enum MisStep {
 
 impl MisStep {
     /// Applies the step with weights `w` to a sub-path's MIS quantities, its pending terms and
-    /// its density factor (rho, 1 / k) at the current vertex. `inv_k` gives 1 / k at a
-    /// position (002; `None` without a density map), asked only at surface vertices.
+    /// its density factor (rho, 1 / k) at the current vertex. `inv_k` gives 1 / k at the
+    /// vertex (002; `None` without a density map), asked only at surface vertices.
     pub fn apply<P: PendingMis>(
         &self,
         w: &VcmWeights,
         mis: &mut VcmVertex,
         pending: &mut P,
         density: &mut (f32, f32),
-        inv_k: impl FnOnce(Vec3) -> Option<f32>,
+        inv_k: impl FnOnce() -> Option<f32>,
     ) {
         match *self {
             MisStep::Origin {
@@ -101,12 +101,11 @@ impl MisStep {
                 cos,
                 with_distance,
                 surface,
-                position,
             } => {
                 pending.arrive(w.arrive(mis, distance, cos, with_distance));
                 pending.keep_if(surface);
                 *density = if surface {
-                    w.density_at(mis, inv_k(position))
+                    w.density_at(mis, inv_k())
                 } else {
                     NO_DENSITY
                 };
@@ -135,18 +134,21 @@ impl MisStep {
 
 /// Re-runs a light sub-path's steps with weights `w` (an eye sub-path's radius), calling
 /// `visit` with the MIS quantities, pending terms and density factor at each of its surface
-/// vertices, the stored ones, in order, until `visit` breaks. The same [`MisStep::apply`] as
-/// the light pass's, so at the radius the sub-path was traced with it gives what was stored.
+/// vertices, the stored ones, in order, until `visit` breaks; `inv_k(i)` gives 1 / k at the
+/// i-th of them. The same [`MisStep::apply`] as the light pass's, so at the radius the
+/// sub-path was traced with it gives what was stored.
 pub fn replay<P: PendingMis>(
     w: &VcmWeights,
     steps: &[MisStep],
-    inv_k: impl Fn(Vec3) -> Option<f32>,
+    mut inv_k: impl FnMut(usize) -> Option<f32>,
     mut visit: impl FnMut(&VcmVertex, &P, (f32, f32)) -> ControlFlow<()>,
 ) {
     let (mut mis, mut pending, mut density) = (VcmVertex::default(), P::default(), NO_DENSITY);
+    let mut surfaces = 0;
     for step in steps {
-        step.apply(w, &mut mis, &mut pending, &mut density, &inv_k);
+        step.apply(w, &mut mis, &mut pending, &mut density, || inv_k(surfaces));
         if let MisStep::Arrive { surface: true, .. } = step {
+            surfaces += 1;
             if visit(&mis, &pending, density).is_break() {
                 return;
             }
@@ -434,9 +436,11 @@ impl<P: PendingMis> LightPaths<P> {
     ) -> LightVertex<P> {
         // The path whose vertices begin at or before `index` and end after it.
         let path = self.path_ends.partition_point(|&start| start <= index) - 1;
+        let start = self.path_ends[path];
         let mut vertex = self.vertices[index];
-        let mut before = index - self.path_ends[path];
-        replay(w, self.steps_of(path), inv_k, |mis, pending, density| {
+        let mut before = index - start;
+        let at = |i: usize| inv_k(self.vertices[start + i].position);
+        replay(w, self.steps_of(path), at, |mis, pending, density| {
             if before > 0 {
                 before -= 1;
                 return ControlFlow::Continue(());
@@ -458,9 +462,11 @@ impl<P: PendingMis> LightPaths<P> {
         inv_k: impl Fn(Vec3) -> Option<f32>,
         mut visit: impl FnMut(&LightVertex<P>) -> ControlFlow<()>,
     ) {
-        let mut stored = self.for_pixel(pixel).iter();
+        let vertices = self.for_pixel(pixel);
+        let mut stored = vertices.iter();
         let steps = self.steps_of(self.pixel_path(pixel));
-        replay(w, steps, inv_k, |mis, pending, density| {
+        let at = |i: usize| inv_k(vertices.get(i)?.position);
+        replay(w, steps, at, |mis, pending, density| {
             let Some(&vertex) = stored.next() else {
                 return ControlFlow::Break(());
             };

@@ -336,11 +336,18 @@ impl<'a> VertexCm<'a> {
         w.density_at(&mut state.mis, self.inv_k(w)(x))
     }
 
-    /// The light sub-path state `state` with its MIS quantities re-run from `steps` (the
-    /// sub-path's so far) with weights `w`; `state` itself where no steps are kept.
-    fn replayed(&self, w: &VcmWeights, state: &SubPath, steps: &[MisStep]) -> SubPath {
+    /// The light sub-path state `state` with its MIS quantities re-run with weights `w` from
+    /// `steps`, the sub-path's so far, whose surface vertices are `vertices`.
+    fn replayed(
+        &self,
+        w: &VcmWeights,
+        state: &SubPath,
+        (steps, vertices): (&[MisStep], &[LightVertex]),
+    ) -> SubPath {
         let mut replayed = *state;
-        subpath::replay(w, steps, self.inv_k(w), |mis, pending, density| {
+        let inv_k = self.inv_k(w);
+        let at = |i: usize| inv_k(vertices.get(i)?.position);
+        subpath::replay(w, steps, at, |mis, pending, density| {
             replayed.mis = *mis;
             replayed.pending = *pending;
             replayed.density = density;
@@ -411,7 +418,7 @@ impl<'a> VertexCm<'a> {
             &mut state.mis,
             &mut state.pending,
             &mut state.density,
-            |_| None,
+            || None,
         );
         Some((state, origin))
     }
@@ -464,7 +471,7 @@ impl<'a> VertexCm<'a> {
             &mut state.mis,
             &mut state.pending,
             &mut state.density,
-            |_| None,
+            || None,
         );
         state.prev_surface = !s.delta;
         if !s.delta {
@@ -501,7 +508,7 @@ impl<'a> VertexCm<'a> {
         // Where the path's MIS steps are kept (per-pixel radii re-run them), this path's
         // begin here.
         let replays = self.replays();
-        let first_step = chunk.steps.len();
+        let first = [chunk.steps.len(), chunk.vertices.len()];
         if replays {
             chunk.steps.push(origin);
         }
@@ -522,14 +529,13 @@ impl<'a> VertexCm<'a> {
                 cos,
                 with_distance,
                 surface: !bsdf.is_delta(),
-                position: hit.position,
             };
             arrive.apply(
                 w,
                 &mut state.mis,
                 &mut state.pending,
                 &mut state.density,
-                self.inv_k(w),
+                || self.inv_k(w)(hit.position),
             );
             if replays {
                 chunk.steps.push(arrive);
@@ -553,7 +559,7 @@ impl<'a> VertexCm<'a> {
                     });
                 }
                 if self.modes.vc || self.modes.light_trace {
-                    self.connect_to_camera(w, (&state, first_step), &hit, &bsdf, chunk);
+                    self.connect_to_camera(w, (&state, first), &hit, &bsdf, chunk);
                 }
             }
             if state.path_length.saturating_add(2) > max_length {
@@ -622,11 +628,12 @@ impl<'a> VertexCm<'a> {
     }
 
     /// Connects a light vertex to the camera and splats it (t = 1; 001 eqs. 46-47).
-    /// `first_step` is where the sub-path's kept MIS steps begin in `chunk`.
+    /// `first` is where the sub-path's kept MIS steps and its stored vertices begin in
+    /// `chunk`.
     fn connect_to_camera(
         &self,
         w: &VcmWeights,
-        (state, first_step): (&SubPath, usize),
+        (state, [first_step, first_vertex]): (&SubPath, [usize; 2]),
         hit: &SurfaceHit,
         bsdf: &Bsdf,
         chunk: &mut LightChunk,
@@ -656,7 +663,8 @@ impl<'a> VertexCm<'a> {
             let w = own.as_ref().unwrap_or(w);
             let replayed;
             let state = if self.replays() {
-                replayed = self.replayed(w, state, &chunk.steps[first_step..]);
+                let path = (&chunk.steps[first_step..], &chunk.vertices[first_vertex..]);
+                replayed = self.replayed(w, state, path);
                 &replayed
             } else {
                 state
