@@ -17,8 +17,7 @@ use std::ops::ControlFlow;
 
 /// MIS terms a technique keeps per sub-path vertex beside its [`VcmVertex`] whose value only a
 /// use of the vertex decides: a merge at the previous vertex gathered from the other side
-/// (000 eqs. 2.81-2.82).
-/// The default is none pending.
+/// (000 eqs. 2.81-2.82). The default is none pending.
 pub trait PendingMis: Copy + Default + Send + Sync {
     /// `v`, the vertex's MIS quantities, with the pending terms added once a use of the vertex
     /// fixes `rev_pdf_w`, the pdf with which it samples its predecessor.
@@ -35,8 +34,9 @@ pub trait PendingMis: Copy + Default + Send + Sync {
     fn keep_if(&mut self, surface: bool);
 }
 
-/// One step of a light sub-path's MIS recursion (001 eqs. (31)-(36)) with the inputs it takes.
-/// The light pass applies each step as it traces. With a radius per eye sub-path (001 sec. 6.1)
+/// One step of a light sub-path's MIS recursion (001 eqs. (31)-(36)) with the inputs it takes
+/// (eye sub-paths leave their vertices by the same [`MisStep::Leave`]). The light pass applies
+/// each step as it traces. With a radius per eye sub-path (001 sec. 6.1)
 /// under UPG's clamped acceptance or 002's density factors, whose sums are not linear in
 /// eta_VCM, a light sub-path cannot carry radius-free sums as VCM's c^VC and c^VM do; so its
 /// steps are kept, and every use of the sub-path re-runs them at the radius of the eye
