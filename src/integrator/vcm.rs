@@ -30,6 +30,7 @@ use super::mis::{
 };
 use super::subpath::{self, EyeVertex, MergeVertex};
 use super::upg::acceptance::{Estimator, PacketWidth};
+use super::upg::blend::{Blend, Ramp};
 use super::upg::merge::{Gathered, Tentative, UpgMerges};
 use super::upg::{Deferred, UpgCounters};
 use super::{Counters, Integrator, IterationStats, RenderContext};
@@ -182,6 +183,8 @@ pub struct VertexCm<'a> {
     alpha: f32,
     /// The merges of `upg` and `upg-camera`.
     upg_merges: Option<UpgMerges<'a>>,
+    /// `vcm-upg`'s merges: density estimates or UPG's, chosen per merge.
+    blend: Option<Blend<'a>>,
     /// 002's density map, for `--density-mis`.
     density: Option<DensityMap>,
     /// Light vertices stored in the last iteration, for the statistics.
@@ -204,22 +207,24 @@ impl<'a> VertexCm<'a> {
                 .radius
                 .unwrap_or_else(|| ctx.scene.default_radius(&ctx.camera)),
         };
+        let estimator = Estimator {
+            packet: if o.upg_packet == 8 {
+                PacketWidth::Eight
+            } else {
+                PacketWidth::One
+            },
+            max_trials: o.upg_max_trials,
+        };
+        let bounds = [o.min_path_length, ctx.max_path_length()];
         let upg_merges = (modes.gather != Gather::Density).then(|| {
-            let estimator = Estimator {
-                packet: if o.upg_packet == 8 {
-                    PacketWidth::Eight
-                } else {
-                    PacketWidth::One
-                },
-                max_trials: o.upg_max_trials,
+            UpgMerges::new(ctx.scene, modes.gather, estimator, bounds, o.roulette)
+        });
+        let blend = (o.technique == Technique::VcmUpg).then(|| {
+            let ramp = Ramp {
+                near: o.blend_near,
+                far: o.blend_far,
             };
-            UpgMerges::new(
-                ctx.scene,
-                modes.gather,
-                estimator,
-                [o.min_path_length, ctx.max_path_length()],
-                o.roulette,
-            )
+            Blend::new(ctx.scene, estimator, bounds, o.roulette, ramp)
         });
         let density = o
             .density_mis
@@ -230,6 +235,7 @@ impl<'a> VertexCm<'a> {
             radius_pixels: o.radius_pixels,
             alpha: o.alpha(),
             upg_merges,
+            blend,
             density,
             ctx,
             stored_vertices: 0,
@@ -867,9 +873,26 @@ impl<'a> VertexCm<'a> {
                 }
                 match (gathered, self.modes.gather) {
                     (Some(gathered), Gather::Density) => {
-                        let merged =
-                            self.merge(&w, &state, &bsdf, &hit, gathered.grid, pass.merge_vertices);
-                        color += state.throughput * merged * w.vm_normalization;
+                        color += state.throughput
+                            * match &self.blend {
+                                Some(blend) => blend.merge(
+                                    &w,
+                                    (&state, &hit, &bsdf),
+                                    gathered,
+                                    tentative,
+                                    stats,
+                                ),
+                                None => {
+                                    self.merge(
+                                        &w,
+                                        &state,
+                                        &bsdf,
+                                        &hit,
+                                        gathered.grid,
+                                        pass.merge_vertices,
+                                    ) * w.vm_normalization
+                                }
+                            };
                         if self.modes.ppm {
                             break;
                         }
@@ -942,7 +965,8 @@ impl Integrator for VertexCm<'_> {
         }
         let grid = self.modes.vm.then_some(&*grid);
         merge_vertices.clear();
-        if let (Some(grid), Gather::Density) = (grid, self.modes.gather) {
+        // `vcm-upg` reads whole light vertices, their predecessors too.
+        if let (Some(grid), Gather::Density, None) = (grid, self.modes.gather, &self.blend) {
             let vertices = &light.vertices;
             merge_vertices.par_extend(
                 grid.indices()
@@ -1036,6 +1060,9 @@ impl Integrator for VertexCm<'_> {
         if self.modes.gather != Gather::Density {
             stats.extend(self.upg.statistics());
         }
+        if let Some(blend) = &self.blend {
+            stats.extend(blend.statistics(&self.upg));
+        }
         if let Some(map) = &self.density {
             stats.extend(map.statistics());
         }
@@ -1044,7 +1071,7 @@ impl Integrator for VertexCm<'_> {
     }
 
     fn counters(&self) -> Counters {
-        if self.modes.gather == Gather::Density {
+        if self.modes.gather == Gather::Density && self.blend.is_none() {
             Counters::default()
         } else {
             self.upg.named()
