@@ -481,7 +481,7 @@ fn vcm_weights_with(
     // mis(eta_j) of the merge at x_j from the gathering side's area pdf of x_j (000 eq. 2.80).
     let eta = |j: usize| {
         let gather_pdf = match gather {
-            Gather::Density | Gather::UpgLight => q.light_a[j],
+            Gather::Density | Gather::UpgLight | Gather::Blend => q.light_a[j],
             Gather::UpgCamera => q.eye_a[j],
         };
         eye_w.eta_if(merge_valid(j), w.mis(1.0 / gather_pdf))

@@ -79,6 +79,7 @@ impl Modes {
         let gather = match o.technique {
             Technique::Upg => Gather::UpgLight,
             Technique::UpgCamera => Gather::UpgCamera,
+            Technique::VcmUpg => Gather::Blend,
             _ => Gather::Density,
         };
         Modes {
@@ -103,13 +104,27 @@ impl Modes {
 
     /// Whether merging is a technique at a vertex a sub-path scatters from: its neighbour back
     /// along the sub-path is known, the one on the other side is not traced yet.
-    fn merge_leaving(&self, light_side: bool, prev_surface: bool) -> VmHere {
-        let known = Neighbour::surface_if(prev_surface);
+    fn merge_leaving(&self, light_side: bool, state: &SubPath) -> VmHere {
         if light_side {
+            let known = Neighbour::towards_light(state.path_length, state.prev_surface);
             self.gather.merge_at(known, Neighbour::Unknown)
         } else {
+            let known = Neighbour::surface_if(state.prev_surface);
             self.gather.merge_at(Neighbour::Unknown, known)
         }
+    }
+
+    /// Whether a merge deferred at the previous vertex is a technique, now that the vertex the
+    /// sub-path reached, that merge's neighbour on the undecided side, is known to be a
+    /// non-delta surface vertex (`surface`) or a delta one.
+    fn keeps_deferred(&self, light_side: bool, surface: bool) -> bool {
+        let reached = Neighbour::surface_if(surface);
+        let here = if light_side {
+            self.gather.merge_at(Neighbour::Surface, reached)
+        } else {
+            self.gather.merge_at(reached, Neighbour::Surface)
+        };
+        here == VmHere::Valid
     }
 }
 
@@ -216,10 +231,10 @@ impl<'a> VertexCm<'a> {
             max_trials: o.upg_max_trials,
         };
         let bounds = [o.min_path_length, ctx.max_path_length()];
-        let upg_merges = (modes.gather != Gather::Density).then(|| {
+        let upg_merges = modes.gather.clamps().then(|| {
             UpgMerges::new(ctx.scene, modes.gather, estimator, bounds, o.roulette)
         });
-        let blend = (o.technique == Technique::VcmUpg).then(|| {
+        let blend = (modes.gather == Gather::Blend).then(|| {
             let ramp = Ramp {
                 near: o.blend_near,
                 far: o.blend_far,
@@ -252,7 +267,7 @@ impl<'a> VertexCm<'a> {
     fn weights(&self, iteration: u64) -> VcmWeights {
         let radius = self.shrunk(iteration, self.base_radius);
         let (power, paths) = (Power(self.ctx.options.beta), self.light_paths() as f32);
-        if self.modes.gather != Gather::Density {
+        if self.modes.gather.clamps() {
             return if self.modes.vc {
                 VcmWeights::clamped(power, radius, paths)
             } else {
@@ -401,10 +416,10 @@ impl<'a> VertexCm<'a> {
             state.throughput /= q;
         }
         let cos_out = bsdf.cos_theta(s.wi);
-        let here = self.modes.merge_leaving(light_side, state.prev_surface);
-        if !s.delta {
-            state.mis = state.mis_at(w, s.rev_pdf_w);
-        }
+        let here = self.modes.merge_leaving(light_side, state);
+        // A merge deferred at the previous vertex settles here; at a delta vertex only
+        // `vcm-upg` keeps one, whose eta does not depend on the pdf.
+        state.mis = state.mis_at(w, s.rev_pdf_w);
         let ratio = w.scatter(
             &mut state.mis,
             cos_out,
@@ -462,7 +477,9 @@ impl<'a> VertexCm<'a> {
             let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Importance) else {
                 break;
             };
-            state.pending.keep_if(!bsdf.is_delta());
+            state
+                .pending
+                .keep_if(self.modes.keeps_deferred(true, !bsdf.is_delta()));
             state.density = NO_DENSITY;
             if !bsdf.is_delta() {
                 state.density = self.density_at(w, hit.position, &mut state);
@@ -586,7 +603,10 @@ impl<'a> VertexCm<'a> {
             let here = self
                 .modes
                 .gather
-                .merge_at(Neighbour::surface_if(state.prev_surface), Neighbour::Other);
+                .merge_at(
+                    Neighbour::towards_light(state.path_length, state.prev_surface),
+                    Neighbour::Other,
+                );
             let eta = w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0;
             w.to_camera(
                 &self.light_mis(w, state.mis_at(w, eval.rev_pdf_w)),
@@ -660,7 +680,7 @@ impl<'a> VertexCm<'a> {
         let here = self
             .modes
             .gather
-            .merge_at(Neighbour::Other, Neighbour::surface_if(state.prev_surface));
+            .merge_at(Neighbour::Light, Neighbour::surface_if(state.prev_surface));
         let weight = w.light_sample(
             &state.mis_at(w, ls.eval.rev_pdf_w),
             w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0,
@@ -697,8 +717,10 @@ impl<'a> VertexCm<'a> {
         // surface vertex. The gathering side's pdf of the merge vertex is the end's own sub-path
         // (its d^VCM) or, when the other side gathers, the other end's across the connection.
         let gather = self.modes.gather;
-        let light_here =
-            gather.merge_at(Neighbour::surface_if(lv.after_surface), Neighbour::Surface);
+        let light_here = gather.merge_at(
+            Neighbour::towards_light(lv.path_length, lv.after_surface),
+            Neighbour::Surface,
+        );
         let eye_here = gather.merge_at(
             Neighbour::Surface,
             Neighbour::surface_if(state.prev_surface),
@@ -851,7 +873,9 @@ impl<'a> VertexCm<'a> {
             let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Radiance) else {
                 break;
             };
-            state.pending.keep_if(!bsdf.is_delta());
+            state
+                .pending
+                .keep_if(self.modes.keeps_deferred(false, !bsdf.is_delta()));
             state.density = NO_DENSITY;
             if !bsdf.is_delta() {
                 if state.specular {
@@ -873,28 +897,18 @@ impl<'a> VertexCm<'a> {
                 }
                 match (gathered, self.modes.gather) {
                     (Some(gathered), Gather::Density) => {
-                        color += state.throughput
-                            * match &self.blend {
-                                Some(blend) => blend.merge(
-                                    &w,
-                                    (&state, &hit, &bsdf),
-                                    gathered,
-                                    tentative,
-                                    stats,
-                                ),
-                                None => {
-                                    self.merge(
-                                        &w,
-                                        &state,
-                                        &bsdf,
-                                        &hit,
-                                        gathered.grid,
-                                        pass.merge_vertices,
-                                    ) * w.vm_normalization
-                                }
-                            };
+                        let merged =
+                            self.merge(&w, &state, &bsdf, &hit, gathered.grid, pass.merge_vertices);
+                        color += state.throughput * merged * w.vm_normalization;
                         if self.modes.ppm {
                             break;
+                        }
+                    }
+                    (Some(gathered), Gather::Blend) => {
+                        if let Some(blend) = &self.blend {
+                            let merged =
+                                blend.merge(&w, (&state, &hit, &bsdf), gathered, tentative, stats);
+                            color += state.throughput * merged;
                         }
                     }
                     (Some(gathered), Gather::UpgLight) => {
@@ -965,8 +979,7 @@ impl Integrator for VertexCm<'_> {
         }
         let grid = self.modes.vm.then_some(&*grid);
         merge_vertices.clear();
-        // `vcm-upg` reads whole light vertices, their predecessors too.
-        if let (Some(grid), Gather::Density, None) = (grid, self.modes.gather, &self.blend) {
+        if let (Some(grid), Gather::Density) = (grid, self.modes.gather) {
             let vertices = &light.vertices;
             merge_vertices.par_extend(
                 grid.indices()
@@ -1057,7 +1070,7 @@ impl Integrator for VertexCm<'_> {
             stats.push(("base_radius".into(), self.base_radius.to_string()));
             stats.push(("alpha".into(), self.alpha.to_string()));
         }
-        if self.modes.gather != Gather::Density {
+        if self.modes.gather.clamps() {
             stats.extend(self.upg.statistics());
         }
         if let Some(blend) = &self.blend {
@@ -1071,7 +1084,7 @@ impl Integrator for VertexCm<'_> {
     }
 
     fn counters(&self) -> Counters {
-        if self.modes.gather == Gather::Density && self.blend.is_none() {
+        if self.modes.gather == Gather::Density {
             Counters::default()
         } else {
             self.upg.named()

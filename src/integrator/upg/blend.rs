@@ -39,7 +39,7 @@
 //! weighted contribution. UPG's clamp (000 eqs. 2.80-2.82) is left out: it is another set of
 //! weights, which would have to hold for the density-estimate merges too.
 
-use super::super::mis::{Gather, Neighbour, VcmWeights};
+use super::super::mis::{Gather, Neighbour, VcmWeights, VmHere};
 use super::super::subpath::{LightVertex, SubPath};
 use super::super::IterationStats;
 use super::acceptance::{AngularBound, Estimator};
@@ -114,6 +114,10 @@ impl<'s> Blend<'s> {
             for i in kept(batch, within) {
                 let i = i as usize;
                 let lv = &vertices[i];
+                let behind = Neighbour::towards_light(lv.path_length, lv.after_surface);
+                if Gather::Blend.merge_at(behind, Neighbour::Surface) != VmHere::Valid {
+                    continue;
+                }
                 // Stored just before: the predecessor the tentative rays would leave from.
                 let q = lv.after_surface.then(|| &vertices[i - 1]);
                 let b = q.map_or(1.0, |q| {
@@ -133,7 +137,7 @@ impl<'s> Blend<'s> {
                         // 001 eqs. (38)-(39), as vcm.rs's density-estimate merge weighs.
                         let weight = w.merge(
                             &lv.mis,
-                            &state.mis,
+                            &state.mis_at(w, eval.rev_pdf_w),
                             (eval.pdf_w, eval.rev_pdf_w),
                             w.vm_factor,
                             state.density,
@@ -170,8 +174,10 @@ impl<'s> Blend<'s> {
         let Ok(bound) = AngularBound::new(q.position, q.ng, &q_bsdf, hit.position, w.radius) else {
             return;
         };
-        let merge_at_q =
-            Gather::Density.merge_at(Neighbour::surface_if(q.after_surface), Neighbour::Surface);
+        let merge_at_q = Gather::Blend.merge_at(
+            Neighbour::towards_light(q.path_length, q.after_surface),
+            Neighbour::Surface,
+        );
         let light = carry(w, &link, q.mis_at(w, link.from_eval.rev_pdf_w), merge_at_q);
         let weight = w.merge(
             &light,
