@@ -414,9 +414,8 @@ impl State {
         delta: bool,
         (here, rho): (VmHere, f32),
     ) {
-        if !delta {
-            self.mis = self.at(w, rev_pdf_w);
-        }
+        // At a delta vertex only vcm-upg keeps a deferred merge, whose eta needs no pdf.
+        self.mis = self.at(w, rev_pdf_w);
         let ratio = w.scatter(
             &mut self.mis,
             cos_out,
@@ -474,7 +473,10 @@ fn vcm_weights_with(
         _ => NO_DENSITY,
     };
     let rho = |i: usize| density(i).0;
-    let neighbour = |i: usize| Neighbour::surface_if(surface(i));
+    let neighbour = |i: usize| match i {
+        0 => Neighbour::Light,
+        _ => Neighbour::surface_if(surface(i)),
+    };
     let merge_valid = |j: usize| {
         surface(j) && gather.merge_at(neighbour(j - 1), neighbour(j + 1)) == VmHere::Valid
     };
@@ -504,7 +506,9 @@ fn vcm_weights_with(
             q.cos_prev[i],
             !(i == 1 && l.infinite),
         );
-        state.deferred.keep_if(surface(i));
+        state
+            .deferred
+            .keep_if(gather.merge_at(Neighbour::Surface, neighbour(i)) == VmHere::Valid);
         if surface(i) && !inv_k.is_empty() {
             w.visit(&mut state.mis, inv_k[i]);
         }
@@ -528,7 +532,9 @@ fn vcm_weights_with(
         if q.connectable[i] {
             w = eye_w;
         }
-        state.deferred.keep_if(surface(i));
+        state
+            .deferred
+            .keep_if(gather.merge_at(neighbour(i), Neighbour::Surface) == VmHere::Valid);
         if surface(i) && !inv_k.is_empty() {
             w.visit(&mut state.mis, inv_k[i]);
         }
@@ -678,13 +684,18 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                     q.k
                 );
             }
-            for gather in [Gather::Density, Gather::UpgLight, Gather::UpgCamera] {
+            for gather in [
+                Gather::Density,
+                Gather::UpgLight,
+                Gather::UpgCamera,
+                Gather::Blend,
+            ] {
                 // Large radii make UPG's clamped acceptance min(p pi r^2, 1) bind.
                 for radius in [1e-3, 1e-2, 0.1, 0.5, 1.0] {
-                    let w = if gather == Gather::Density {
-                        VcmWeights::new(power, radius, setup.n(), true, true)
-                    } else {
+                    let w = if gather.clamps() {
                         VcmWeights::clamped(power, radius, setup.n())
+                    } else {
+                        VcmWeights::new(power, radius, setup.n(), true, true)
                     };
                     let (vc, vm) = vcm_weights(&w, gather, path, &q, &[]);
                     let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
@@ -697,7 +708,7 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                     if vm.iter().any(|&m| m > 1e-3) {
                         merged += 1;
                     }
-                    if gather != Gather::Density {
+                    if gather.clamps() {
                         // Merge-only UPG (000 sec. 5.2): the merges of a path that has any
                         // share it among themselves.
                         let only = VcmWeights::clamped_merges_only(power, radius, setup.n());
