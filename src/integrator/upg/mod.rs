@@ -5,6 +5,8 @@
 //! - `acceptance.rs`: the estimate of 1/p_acc (000 eqs. 2.56-2.66), with its angular bounds;
 //! - `merge.rs`: the merges from the light side (`upg`) and from the camera side
 //!   (`upg-camera`), gathered and estimated together per eye vertex;
+//! - `blend.rs`: `vcm-upg`, each merge made by VCM's density estimate or by UPG's gather from
+//!   the light side, chosen by the length of its tentative ray;
 //! - here: [`Deferred`], the weight term of a merge that only the sub-path's next vertex can
 //!   decide, and [`UpgCounters`], the tentative-ray work.
 
