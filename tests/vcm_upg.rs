@@ -59,10 +59,7 @@ fn vcm_upg_converges_to_bpt() {
     let (m, r) = (long.image_mean(), bpt.image_mean());
     assert!((m - r).abs() < 0.01 * r, "vcm-upg mean {m}, bpt {r}");
     let (early, late) = (rms_difference(&short, &bpt), rms_difference(&long, &bpt));
-    assert!(
-        late < 0.5 * early,
-        "RMS difference {early} -> {late}"
-    );
+    assert!(late < 0.5 * early, "RMS difference {early} -> {late}");
 }
 
 /// The pixels whose primary hit (through the pixel's centre) has another surface within

@@ -231,9 +231,10 @@ impl<'a> VertexCm<'a> {
             max_trials: o.upg_max_trials,
         };
         let bounds = [o.min_path_length, ctx.max_path_length()];
-        let upg_merges = modes.gather.clamps().then(|| {
-            UpgMerges::new(ctx.scene, modes.gather, estimator, bounds, o.roulette)
-        });
+        let upg_merges = modes
+            .gather
+            .clamps()
+            .then(|| UpgMerges::new(ctx.scene, modes.gather, estimator, bounds, o.roulette));
         let blend = (modes.gather == Gather::Blend).then(|| {
             let ramp = Ramp {
                 near: o.blend_near,
@@ -600,13 +601,10 @@ impl<'a> VertexCm<'a> {
             let own = self.eye_weights(w, dist2.sqrt(), -dir);
             let w = own.as_ref().unwrap_or(w);
             // Towards the eye lies the camera, which tentative rays cannot leave from.
-            let here = self
-                .modes
-                .gather
-                .merge_at(
-                    Neighbour::towards_light(state.path_length, state.prev_surface),
-                    Neighbour::Other,
-                );
+            let here = self.modes.gather.merge_at(
+                Neighbour::towards_light(state.path_length, state.prev_surface),
+                Neighbour::Other,
+            );
             let eta = w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0;
             w.to_camera(
                 &self.light_mis(w, state.mis_at(w, eval.rev_pdf_w)),

@@ -208,7 +208,10 @@ impl<'s> Blend<'s> {
             "blend_upg_merge_share".into(),
             format!("{:.4}", counters.merges as f64 / all.max(1) as f64),
         ));
-        stats.push(("blend_density_merges".into(), counters.density_merges.to_string()));
+        stats.push((
+            "blend_density_merges".into(),
+            counters.density_merges.to_string(),
+        ));
         stats.push((
             "blend_ramp_radii".into(),
             format!("{} to {}", self.ramp.near, self.ramp.far),
@@ -223,7 +226,10 @@ mod tests {
 
     #[test]
     fn the_ramp_runs_smoothly_from_upg_to_vcm() {
-        let ramp = Ramp { near: 2.0, far: 6.0 };
+        let ramp = Ramp {
+            near: 2.0,
+            far: 6.0,
+        };
         assert_eq!(ramp.vcm_probability(0.0), 0.0);
         assert_eq!(ramp.vcm_probability(2.0), 0.0);
         assert_eq!(ramp.vcm_probability(4.0), 0.5);
@@ -233,7 +239,11 @@ mod tests {
         let mut last = 0.0;
         for k in 0..=800 {
             let b = ramp.vcm_probability(k as f32 * 0.01);
-            assert!(b >= last && b - last < 0.01, "at {}: {last} -> {b}", k as f32 * 0.01);
+            assert!(
+                b >= last && b - last < 0.01,
+                "at {}: {last} -> {b}",
+                k as f32 * 0.01
+            );
             last = b;
         }
     }

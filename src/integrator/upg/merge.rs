@@ -225,7 +225,12 @@ impl<'s> UpgMerges<'s> {
 
 /// The MIS quantities of the sub-path that ends at the first vertex of `c` (`at_from`),
 /// carried across it to the second (001 eqs. (34)-(36)).
-pub(super) fn carry(w: &VcmWeights, c: &Connection, at_from: VcmVertex, merge_at_from: VmHere) -> VcmVertex {
+pub(super) fn carry(
+    w: &VcmWeights,
+    c: &Connection,
+    at_from: VcmVertex,
+    merge_at_from: VmHere,
+) -> VcmVertex {
     let mut v = at_from;
     w.scatter(
         &mut v,
@@ -294,7 +299,12 @@ impl<'s> Tentative<'s> {
     /// A random stream of the current pixel's eye vertex `vertex` (its path length) for
     /// `purpose`, apart from the merges' own.
     pub(super) fn stream(&self, vertex: u32, purpose: Stream) -> Rng {
-        Rng::for_sample(self.seed, self.iteration, self.base + u64::from(vertex), purpose)
+        Rng::for_sample(
+            self.seed,
+            self.iteration,
+            self.base + u64::from(vertex),
+            purpose,
+        )
     }
 
     /// Counts a merge made by density estimate instead (`vcm-upg`).
