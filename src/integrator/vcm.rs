@@ -418,9 +418,11 @@ impl<'a> VertexCm<'a> {
         }
         let cos_out = bsdf.cos_theta(s.wi);
         let here = self.modes.merge_leaving(light_side, state);
-        // A merge deferred at the previous vertex settles here; at a delta vertex only
-        // `vcm-upg` keeps one, whose eta does not depend on the pdf.
-        state.mis = state.mis_at(w, s.rev_pdf_w);
+        // A merge deferred at the previous vertex settles here. `vcm-upg`'s stays a technique
+        // whatever lobe the vertex samples, a delta one too, and its eta needs no pdf.
+        if !s.delta || self.modes.gather == Gather::Blend {
+            state.mis = state.mis_at(w, s.rev_pdf_w);
+        }
         let ratio = w.scatter(
             &mut state.mis,
             cos_out,
