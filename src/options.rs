@@ -25,10 +25,11 @@ pub enum Technique {
     Vcm,
     Upg,
     UpgCamera,
+    VcmUpg,
 }
 
 impl Technique {
-    pub const ALL: [Technique; 8] = [
+    pub const ALL: [Technique; 9] = [
         Technique::Pt,
         Technique::Lt,
         Technique::Bpt,
@@ -37,6 +38,7 @@ impl Technique {
         Technique::Vcm,
         Technique::Upg,
         Technique::UpgCamera,
+        Technique::VcmUpg,
     ];
 
     pub fn name(self) -> &'static str {
@@ -49,6 +51,7 @@ impl Technique {
             Technique::Vcm => "vcm",
             Technique::Upg => "upg",
             Technique::UpgCamera => "upg-camera",
+            Technique::VcmUpg => "vcm-upg",
         }
     }
 
@@ -62,6 +65,9 @@ impl Technique {
             Technique::Vcm => "vertex connection and merging",
             Technique::Upg => "unbiased photon gathering, merging from the light side",
             Technique::UpgCamera => "unbiased photon gathering, merging from the camera side",
+            Technique::VcmUpg => {
+                "vcm, its merges near corners and edges made by unbiased photon gathering"
+            }
         }
     }
 
@@ -70,9 +76,22 @@ impl Technique {
         Technique::ALL.into_iter().find(|t| t.name() == name)
     }
 
-    /// Merges by density estimation, whose radius shrinks (000 eq. 2.85).
+    /// Merges by density estimation alone, whose radius shrinks (000 eq. 2.85): the
+    /// techniques one-stage storage and per-pixel radii serve.
     pub fn shrinks_radius(self) -> bool {
         matches!(self, Technique::Ppm | Technique::Bpm | Technique::Vcm)
+    }
+
+    /// Biased, and consistent by shrinking its radius (000 eq. 2.85): the density estimators,
+    /// and `vcm-upg`, whose merges are density estimates wherever the radius is small against
+    /// the tentative ray.
+    pub fn is_consistent(self) -> bool {
+        self.shrinks_radius() || self == Technique::VcmUpg
+    }
+
+    /// Estimates acceptance probabilities with tentative rays (000 eq. 2.65).
+    pub fn traces_tentative_rays(self) -> bool {
+        self.is_upg() || self == Technique::VcmUpg
     }
 
     /// Unbiased photon gathering: merges at a fixed radius (000 sec. 2.4.6).
@@ -82,7 +101,7 @@ impl Technique {
 
     /// Merges light vertices at all.
     pub fn merges(self) -> bool {
-        self.shrinks_radius() || self.is_upg()
+        self.is_consistent() || self.is_upg()
     }
 
     /// Traces a set of light sub-paths per iteration that `light_paths` sizes: the techniques
@@ -217,10 +236,14 @@ pub struct RenderOptions {
     pub strategy: Option<[u32; 2]>,
     /// `bpt` only: leave the MIS weights out (each technique at weight 1).
     pub unweighted: bool,
-    /// `upg`, `upg-camera`: tentative rays traced 1 or 8 at a time.
+    /// `upg`, `upg-camera`, `vcm-upg`: tentative rays traced 1 or 8 at a time.
     pub upg_packet: u32,
-    /// `upg`, `upg-camera`: Bernoulli trials after which a merge is dropped.
+    /// `upg`, `upg-camera`, `vcm-upg`: Bernoulli trials after which a merge is dropped.
     pub upg_max_trials: u32,
+    /// `vcm-upg`: the length of a merge's tentative ray, in radii, up to which UPG makes every
+    /// merge, and from which VCM's density estimate makes every one; smooth between.
+    pub blend_near: f32,
+    pub blend_far: f32,
     /// `vcm`, `bpm`: 002's density-map heuristic instead of VCM's.
     pub density_mis: Option<DensityMis>,
     /// Iterations whose light vertices fill the density map; after them it is fixed (002
@@ -260,6 +283,8 @@ impl RenderOptions {
         unweighted: false,
         upg_packet: 1,
         upg_max_trials: 10_000,
+        blend_near: 4.0,
+        blend_far: 12.0,
         density_mis: None,
         density_map_iterations: 50,
         no_shading_normals: false,
@@ -285,7 +310,7 @@ impl RenderOptions {
     /// whose density estimate shrinks its radius (000 eq. 2.85), and 1 (a fixed radius) for
     /// the rest; UPG is unbiased at any radius (000 sec. 2.4.6).
     pub fn alpha(&self) -> f32 {
-        if self.technique.shrinks_radius() {
+        if self.technique.is_consistent() {
             self.alpha.unwrap_or(0.75)
         } else {
             1.0
@@ -671,7 +696,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             choices: None,
         },
         help: "radius shrinking exponent r_i = r_1 sqrt(i^(alpha-1)) (default 0.75)",
-        takes: Technique::shrinks_radius,
+        takes: Technique::is_consistent,
         write: |o| o.alpha.map(|a| a.to_string()),
         parse: |o, s| {
             o.alpha = Some(number(s)?);
@@ -822,7 +847,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             choices: None,
         },
         help: "trace tentative rays 1 or 8 at a time",
-        takes: Technique::is_upg,
+        takes: Technique::traces_tentative_rays,
         write: |o| Some(o.upg_packet.to_string()),
         parse: |o, s| {
             o.upg_packet = count(s)?;
@@ -839,7 +864,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             choices: None,
         },
         help: "trials after which a merge is dropped (and counted)",
-        takes: Technique::is_upg,
+        takes: Technique::traces_tentative_rays,
         write: |o| Some(o.upg_max_trials.to_string()),
         parse: |o, s| {
             o.upg_max_trials = count(s)?;
@@ -847,6 +872,47 @@ pub static OPTIONS: &[OptionSpec] = &[
         },
         invalid: |o| (o.upg_max_trials == 0).then(|| "0".to_string()),
         expected: "at least 1 trial",
+    },
+    OptionSpec {
+        name: "blend_near",
+        short: None,
+        form: Form::Value {
+            value_name: "RADII",
+            choices: None,
+        },
+        help: "UPG makes every merge whose tentative ray is at most this many radii long",
+        takes: |t| t == Technique::VcmUpg,
+        write: |o| Some(o.blend_near.to_string()),
+        parse: |o, s| {
+            o.blend_near = number(s)?;
+            Ok(())
+        },
+        invalid: |o| {
+            (!(o.blend_near.is_finite() && o.blend_near >= 0.0)).then(|| o.blend_near.to_string())
+        },
+        expected: "a finite number of radii >= 0",
+    },
+    OptionSpec {
+        name: "blend_far",
+        short: None,
+        form: Form::Value {
+            value_name: "RADII",
+            choices: None,
+        },
+        help: "VCM's density estimate makes every merge whose tentative ray is at least this many radii long; smooth between blend_near and this",
+        takes: |t| t == Technique::VcmUpg,
+        write: |o| Some(o.blend_far.to_string()),
+        parse: |o, s| {
+            o.blend_far = number(s)?;
+            Ok(())
+        },
+        // Equal ends would switch at one length: a seam in the image.
+        invalid: |o| match o.blend_far {
+            far if !far.is_finite() => Some(far.to_string()),
+            far if far <= o.blend_near => Some(format!("{far}, not above {}", o.blend_near)),
+            _ => None,
+        },
+        expected: "a finite number of radii above blend_near",
     },
     OptionSpec {
         name: "sampler",

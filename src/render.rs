@@ -79,7 +79,8 @@ pub fn create_integrator<'a>(ctx: RenderContext<'a>) -> Box<dyn Integrator + 'a>
         | Technique::Bpm
         | Technique::Vcm
         | Technique::Upg
-        | Technique::UpgCamera => Box::new(VertexCm::new(ctx)),
+        | Technique::UpgCamera
+        | Technique::VcmUpg => Box::new(VertexCm::new(ctx)),
     }
 }
 

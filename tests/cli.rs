@@ -402,6 +402,8 @@ fn options_written_as_arguments_come_back_from_the_image() {
             unweighted: true,
             upg_packet: 8,
             upg_max_trials: 50,
+            blend_near: 1.0,
+            blend_far: 3.0,
             density_mis: Some(DensityMis::Star),
             density_map_iterations: 2,
             no_shading_normals: true,

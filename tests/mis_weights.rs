@@ -427,9 +427,8 @@ impl State {
         delta: bool,
         (here, rho): (VmHere, f32),
     ) {
-        if !delta {
-            self.mis = self.at(w, rev_pdf_w);
-        }
+        // At a delta vertex only vcm-upg keeps a deferred merge, whose eta needs no pdf.
+        self.mis = self.at(w, rev_pdf_w);
         let ratio = w.scatter(
             &mut self.mis,
             cos_out,
@@ -512,14 +511,17 @@ fn vcm_weights_with(
     // The eye sub-path's (and a merge's, made at an eye vertex) at the eye's radius.
     let density = |i: usize| density_at(i, eye_w.radius);
     let rho = |i: usize| density(i).0;
-    let neighbour = |i: usize| Neighbour::surface_if(surface(i));
+    let neighbour = |i: usize| match i {
+        0 => Neighbour::Light,
+        _ => Neighbour::surface_if(surface(i)),
+    };
     let merge_valid = |j: usize| {
         surface(j) && gather.merge_at(neighbour(j - 1), neighbour(j + 1)) == VmHere::Valid
     };
     // mis(eta_j) of the merge at x_j from the gathering side's area pdf of x_j (000 eq. 2.80).
     let eta = |j: usize| {
         let gather_pdf = match gather {
-            Gather::Density | Gather::UpgLight => q.light_a[j],
+            Gather::Density | Gather::UpgLight | Gather::Blend => q.light_a[j],
             Gather::UpgCamera => q.eye_a[j],
         };
         eye_w.eta_if(merge_valid(j), w.mis(1.0 / gather_pdf))
@@ -557,7 +559,9 @@ fn vcm_weights_with(
             with_distance,
             surface: surface(i),
         });
-        state.deferred.keep_if(surface(i));
+        state
+            .deferred
+            .keep_if(gather.merge_at(Neighbour::Surface, neighbour(i)) == VmHere::Valid);
         let (light_rho, light_inv_k) = density_at(i, w.radius);
         if surface(i) && inv_k(i, w.radius).is_some() {
             w.visit(&mut state.mis, light_inv_k);
@@ -610,7 +614,9 @@ fn vcm_weights_with(
         if q.connectable[i] {
             w = eye_w;
         }
-        state.deferred.keep_if(surface(i));
+        state
+            .deferred
+            .keep_if(gather.merge_at(neighbour(i), Neighbour::Surface) == VmHere::Valid);
         if let (true, Some(inv)) = (surface(i), inv_k(i, eye_w.radius)) {
             w.visit(&mut state.mis, inv);
         }
@@ -764,13 +770,18 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                     q.k
                 );
             }
-            for gather in [Gather::Density, Gather::UpgLight, Gather::UpgCamera] {
+            for gather in [
+                Gather::Density,
+                Gather::UpgLight,
+                Gather::UpgCamera,
+                Gather::Blend,
+            ] {
                 // Large radii make UPG's clamped acceptance min(p pi r^2, 1) bind.
                 for radius in [1e-3, 1e-2, 0.1, 0.5, 1.0] {
-                    let w = if gather == Gather::Density {
-                        VcmWeights::new(power, radius, setup.n(), true, true)
-                    } else {
+                    let w = if gather.clamps() {
                         VcmWeights::clamped(power, radius, setup.n())
+                    } else {
+                        VcmWeights::new(power, radius, setup.n(), true, true)
                     };
                     let (vc, vm) = vcm_weights(&w, gather, path, &q, &[]);
                     let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
@@ -783,7 +794,7 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                     if vm.iter().any(|&m| m > 1e-3) {
                         merged += 1;
                     }
-                    if gather != Gather::Density {
+                    if gather.clamps() {
                         // Merge-only UPG (000 sec. 5.2): the merges of a path that has any
                         // share it among themselves.
                         let only = VcmWeights::clamped_merges_only(power, radius, setup.n());

@@ -37,6 +37,9 @@ fn values(name: &str) -> Vec<String> {
             format!("{u32_max},{u32_max}"),
         ],
         "upg_packet" => s(&["8"]),
+        // Each with the other at its default (4 to 12 radii), and pairwise in order.
+        "blend_near" => s(&["0", "0.5", "5.5"]),
+        "blend_far" => vec!["4.5".into(), "10".into(), f_max],
         "sampler" => s(&["independent"]),
         "density_mis" => s(&["vcm+", "vcm*"]),
         "memory" => s(&["one-stage"]),

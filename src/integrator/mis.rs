@@ -207,6 +207,8 @@ pub enum Gather {
     UpgLight,
     /// `upg-camera`: the eye vertex's predecessor is connected to the light vertex (UPG*).
     UpgCamera,
+    /// `vcm-upg`: density estimation or `upg`'s gather, chosen per merge (`upg/blend.rs`).
+    Blend,
 }
 
 /// What lies next to a vertex along the path, on one side.
@@ -214,7 +216,10 @@ pub enum Gather {
 pub enum Neighbour {
     /// A non-delta surface vertex: tentative rays can leave from it.
     Surface,
-    /// A light point, the camera or a delta vertex.
+    /// The light point: a light sub-path's origin, or what light sampling and a light hit
+    /// reach.
+    Light,
+    /// The camera or a delta vertex.
     Other,
     /// Not traced yet: the sub-path has not gone on from here.
     Unknown,
@@ -226,6 +231,16 @@ impl Neighbour {
             Neighbour::Surface
         } else {
             Neighbour::Other
+        }
+    }
+
+    /// What lies towards the light from a light sub-path's vertex `path_length` segments from
+    /// the light, whose predecessor is a non-delta surface vertex when `after_surface`.
+    pub fn towards_light(path_length: u32, after_surface: bool) -> Self {
+        if path_length == 1 {
+            Neighbour::Light
+        } else {
+            Neighbour::surface_if(after_surface)
         }
     }
 }
@@ -245,17 +260,32 @@ impl Gather {
     /// towards the light and towards the eye. A density estimate merges at every non-delta
     /// vertex; unbiased photon gathering needs the neighbour on its gathering side to be a
     /// non-delta surface vertex, since the tentative rays leave from it (000 sec. 2.4.3).
+    /// `vcm-upg` merges everywhere but next to the light point: those merges neither tentative
+    /// rays can make nor a density estimate without its bias, and light sampling makes every
+    /// path they would.
     pub fn merge_at(self, light_side: Neighbour, eye_side: Neighbour) -> VmHere {
         let neighbour = match self {
             Gather::Density => return VmHere::Valid,
             Gather::UpgLight => light_side,
             Gather::UpgCamera => eye_side,
+            Gather::Blend => {
+                return match light_side {
+                    Neighbour::Light => VmHere::Invalid,
+                    Neighbour::Unknown => VmHere::Deferred,
+                    Neighbour::Surface | Neighbour::Other => VmHere::Valid,
+                }
+            }
         };
         match neighbour {
             Neighbour::Surface => VmHere::Valid,
-            Neighbour::Other => VmHere::Invalid,
+            Neighbour::Light | Neighbour::Other => VmHere::Invalid,
             Neighbour::Unknown => VmHere::Deferred,
         }
+    }
+
+    /// Whether the techniques' weights are UPG's clamped ones (000 eqs. 2.80-2.82).
+    pub fn clamps(self) -> bool {
+        matches!(self, Gather::UpgLight | Gather::UpgCamera)
     }
 }
 

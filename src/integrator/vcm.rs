@@ -30,6 +30,7 @@ use super::mis::{
 };
 use super::subpath::{self, EyeVertex, MergeVertex, MisStep, PendingMis};
 use super::upg::acceptance::{Estimator, PacketWidth};
+use super::upg::blend::{Blend, Ramp};
 use super::upg::merge::{Gathered, Reweigh, Tentative, UpgMerges};
 use super::upg::{Deferred, UpgCounters};
 use super::{Counters, Integrator, IterationStats, RenderContext};
@@ -79,6 +80,7 @@ impl Modes {
         let gather = match o.technique {
             Technique::Upg => Gather::UpgLight,
             Technique::UpgCamera => Gather::UpgCamera,
+            Technique::VcmUpg => Gather::Blend,
             _ => Gather::Density,
         };
         Modes {
@@ -103,13 +105,24 @@ impl Modes {
 
     /// Whether merging is a technique at a vertex a sub-path scatters from: its neighbour back
     /// along the sub-path is known, the one on the other side is not traced yet.
-    fn merge_leaving(&self, light_side: bool, prev_surface: bool) -> VmHere {
-        let known = Neighbour::surface_if(prev_surface);
+    fn merge_leaving(&self, light_side: bool, state: &SubPath) -> VmHere {
         if light_side {
+            let known = Neighbour::towards_light(state.path_length, state.prev_surface);
             self.gather.merge_at(known, Neighbour::Unknown)
         } else {
+            let known = Neighbour::surface_if(state.prev_surface);
             self.gather.merge_at(Neighbour::Unknown, known)
         }
+    }
+
+    /// Whether a merge deferred at the eye sub-path's previous vertex is a technique, now that
+    /// the vertex reached, that merge's neighbour towards the light, is known to be a non-delta
+    /// surface vertex (`surface`) or a delta one. (Light sub-paths keep theirs at non-delta
+    /// surface vertices, [`MisStep::Arrive`]: only `upg-camera` defers there, and its rule is
+    /// that.)
+    fn keeps_deferred(&self, surface: bool) -> bool {
+        let reached = Neighbour::surface_if(surface);
+        self.gather.merge_at(reached, Neighbour::Surface) == VmHere::Valid
     }
 }
 
@@ -183,6 +196,8 @@ pub struct VertexCm<'a> {
     alpha: f32,
     /// The merges of `upg` and `upg-camera`.
     upg_merges: Option<UpgMerges<'a>>,
+    /// `vcm-upg`'s merges: density estimates or UPG's, chosen per merge.
+    blend: Option<Blend<'a>>,
     /// 002's density map, for `--density-mis`.
     density: Option<DensityMap>,
     /// Light vertices stored in the last iteration, for the statistics.
@@ -205,22 +220,25 @@ impl<'a> VertexCm<'a> {
                 .radius
                 .unwrap_or_else(|| ctx.scene.default_radius(&ctx.camera)),
         };
-        let upg_merges = (modes.gather != Gather::Density).then(|| {
-            let estimator = Estimator {
-                packet: if o.upg_packet == 8 {
-                    PacketWidth::Eight
-                } else {
-                    PacketWidth::One
-                },
-                max_trials: o.upg_max_trials,
+        let estimator = Estimator {
+            packet: if o.upg_packet == 8 {
+                PacketWidth::Eight
+            } else {
+                PacketWidth::One
+            },
+            max_trials: o.upg_max_trials,
+        };
+        let bounds = [o.min_path_length, ctx.max_path_length()];
+        let upg_merges = modes
+            .gather
+            .clamps()
+            .then(|| UpgMerges::new(ctx.scene, modes.gather, estimator, bounds, o.roulette));
+        let blend = (modes.gather == Gather::Blend).then(|| {
+            let ramp = Ramp {
+                near: o.blend_near,
+                far: o.blend_far,
             };
-            UpgMerges::new(
-                ctx.scene,
-                modes.gather,
-                estimator,
-                [o.min_path_length, ctx.max_path_length()],
-                o.roulette,
-            )
+            Blend::new(ctx.scene, estimator, bounds, o.roulette, ramp)
         });
         let density = o
             .density_mis
@@ -231,6 +249,7 @@ impl<'a> VertexCm<'a> {
             radius_pixels: o.radius_pixels,
             alpha: o.alpha(),
             upg_merges,
+            blend,
             density,
             ctx,
             stored_vertices: 0,
@@ -247,7 +266,7 @@ impl<'a> VertexCm<'a> {
     fn weights(&self, iteration: u64) -> VcmWeights {
         let radius = self.shrunk(iteration, self.base_radius);
         let (power, paths) = (Power(self.ctx.options.beta), self.light_paths() as f32);
-        if self.modes.gather != Gather::Density {
+        if self.modes.gather.clamps() {
             return if self.modes.vc {
                 VcmWeights::clamped(power, radius, paths)
             } else {
@@ -459,12 +478,19 @@ impl<'a> VertexCm<'a> {
             state.throughput /= q;
         }
         let cos_out = bsdf.cos_theta(s.wi);
+        let here = self.modes.merge_leaving(light_side, state);
+        // A merge deferred at the previous vertex settles as the vertex is left, which the
+        // step does for non-delta lobes. `vcm-upg`'s stays a technique whatever lobe the
+        // vertex samples, a delta one too, and its eta needs no pdf.
+        if s.delta && self.modes.gather == Gather::Blend {
+            state.mis = state.mis_at(w, s.rev_pdf_w);
+        }
         let step = MisStep::Leave {
             cos_out,
             pdf_w: s.pdf_w,
             rev_pdf_w: s.rev_pdf_w,
             delta: s.delta,
-            here: self.modes.merge_leaving(light_side, state.prev_surface),
+            here,
         };
         step.apply(
             w,
@@ -670,10 +696,10 @@ impl<'a> VertexCm<'a> {
                 state
             };
             // Towards the eye lies the camera, which tentative rays cannot leave from.
-            let here = self
-                .modes
-                .gather
-                .merge_at(Neighbour::surface_if(state.prev_surface), Neighbour::Other);
+            let here = self.modes.gather.merge_at(
+                Neighbour::towards_light(state.path_length, state.prev_surface),
+                Neighbour::Other,
+            );
             let eta = w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0;
             w.to_camera(
                 &self.light_mis(w, state.mis_at(w, eval.rev_pdf_w)),
@@ -747,7 +773,7 @@ impl<'a> VertexCm<'a> {
         let here = self
             .modes
             .gather
-            .merge_at(Neighbour::Other, Neighbour::surface_if(state.prev_surface));
+            .merge_at(Neighbour::Light, Neighbour::surface_if(state.prev_surface));
         let weight = w.light_sample(
             &state.mis_at(w, ls.eval.rev_pdf_w),
             w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0,
@@ -784,8 +810,10 @@ impl<'a> VertexCm<'a> {
         // surface vertex. The gathering side's pdf of the merge vertex is the end's own sub-path
         // (its d^VCM) or, when the other side gathers, the other end's across the connection.
         let gather = self.modes.gather;
-        let light_here =
-            gather.merge_at(Neighbour::surface_if(lv.after_surface), Neighbour::Surface);
+        let light_here = gather.merge_at(
+            Neighbour::towards_light(lv.path_length, lv.after_surface),
+            Neighbour::Surface,
+        );
         let eye_here = gather.merge_at(
             Neighbour::Surface,
             Neighbour::surface_if(state.prev_surface),
@@ -948,7 +976,9 @@ impl<'a> VertexCm<'a> {
             let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Radiance) else {
                 break;
             };
-            state.pending.keep_if(!bsdf.is_delta());
+            state
+                .pending
+                .keep_if(self.modes.keeps_deferred(!bsdf.is_delta()));
             state.density = NO_DENSITY;
             if !bsdf.is_delta() {
                 if state.specular {
@@ -982,6 +1012,13 @@ impl<'a> VertexCm<'a> {
                         color += state.throughput * merged * w.vm_normalization;
                         if self.modes.ppm {
                             break;
+                        }
+                    }
+                    (Some(gathered), Gather::Blend) => {
+                        if let Some(blend) = &self.blend {
+                            let merged =
+                                blend.merge(&w, (&state, &hit, &bsdf), gathered, tentative, stats);
+                            color += state.throughput * merged;
                         }
                     }
                     (Some(gathered), Gather::UpgLight) => {
@@ -1148,8 +1185,11 @@ impl Integrator for VertexCm<'_> {
             stats.push(("base_radius".into(), self.base_radius.to_string()));
             stats.push(("alpha".into(), self.alpha.to_string()));
         }
-        if self.modes.gather != Gather::Density {
+        if self.modes.gather.clamps() {
             stats.extend(self.upg.statistics());
+        }
+        if let Some(blend) = &self.blend {
+            stats.extend(blend.statistics(&self.upg));
         }
         if let Some(map) = &self.density {
             stats.extend(map.statistics());

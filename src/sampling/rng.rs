@@ -9,6 +9,8 @@ pub enum Stream {
     Eye = 1,
     Light = 2,
     Tentative = 3,
+    /// `vcm-upg`'s choice, per merge, of the estimate that makes it.
+    Blend = 4,
 }
 
 #[derive(Clone, Debug)]

@@ -208,13 +208,13 @@ impl<'s> UpgMerges<'s> {
         self.estimate(tentative, stats)
     }
 
-    /// The probability that Russian roulette let a sub-path go on from a vertex.
     /// Whether a merged path of `segments` lies within the path-length bounds.
-    fn keeps(&self, segments: u32) -> bool {
+    pub(super) fn keeps(&self, segments: u32) -> bool {
         (self.min_length..=self.max_length).contains(&segments)
     }
 
-    fn roulette_probability(&self, bsdf: &Bsdf, path_length: u32) -> f32 {
+    /// The probability that Russian roulette let a sub-path go on from a vertex.
+    pub(super) fn roulette_probability(&self, bsdf: &Bsdf, path_length: u32) -> f32 {
         if path_length >= self.roulette {
             bsdf.continuation_probability()
         } else {
@@ -224,7 +224,7 @@ impl<'s> UpgMerges<'s> {
 
     /// The explicit connection of a UPG merge between two vertices (BSDF, position, geometric
     /// normal): both BSDFs, the geometry term and the visibility (000 eq. 2.67).
-    fn link(
+    pub(super) fn link(
         &self,
         (from, from_position, from_ng): (&Bsdf, Vec3, Vec3),
         (to, to_position, to_ng): (&Bsdf, Vec3, Vec3),
@@ -243,7 +243,7 @@ impl<'s> UpgMerges<'s> {
 
     /// Estimates 1/p_acc for the merges of one gather, together so that packets can take lanes
     /// from all of them, and returns the sum of their contributions.
-    fn estimate(&self, tentative: &mut Tentative, stats: &mut IterationStats) -> Rgb {
+    pub(super) fn estimate(&self, tentative: &mut Tentative, stats: &mut IterationStats) -> Rgb {
         // `upg` gathers light vertices, which lie on non-delta surfaces only; `upg-camera`
         // gathers at wherever the eye sub-path lands.
         match self.gather {
@@ -257,7 +257,12 @@ impl<'s> UpgMerges<'s> {
 
 /// The MIS quantities of the sub-path that ends at the first vertex of `c` (`at_from`),
 /// carried across it to the second (001 eqs. (34)-(36)).
-fn carry(w: &VcmWeights, c: &Connection, at_from: VcmVertex, merge_at_from: VmHere) -> VcmVertex {
+pub(super) fn carry(
+    w: &VcmWeights,
+    c: &Connection,
+    at_from: VcmVertex,
+    merge_at_from: VmHere,
+) -> VcmVertex {
     let mut v = at_from;
     w.scatter(
         &mut v,
@@ -311,7 +316,7 @@ impl<'s> Tentative<'s> {
         self.values.clear();
     }
 
-    fn push(&mut self, bound: AngularBound<'s>, value: Rgb) {
+    pub(super) fn push(&mut self, bound: AngularBound<'s>, value: Rgb) {
         self.merges += 1;
         self.rngs.push(Rng::for_sample(
             self.seed,
@@ -321,6 +326,22 @@ impl<'s> Tentative<'s> {
         ));
         self.bounds.push(bound);
         self.values.push(value);
+    }
+
+    /// A random stream of the current pixel's eye vertex `vertex` (its path length) for
+    /// `purpose`, apart from the merges' own.
+    pub(super) fn stream(&self, vertex: u32, purpose: Stream) -> Rng {
+        Rng::for_sample(
+            self.seed,
+            self.iteration,
+            self.base + u64::from(vertex),
+            purpose,
+        )
+    }
+
+    /// Counts a merge made by density estimate instead (`vcm-upg`).
+    pub(super) fn count_density_merge(&mut self) {
+        self.counters.density_merges += 1;
     }
 
     /// The work counted since the last call: merges estimated, their trials and tentative rays.

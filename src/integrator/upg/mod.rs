@@ -5,6 +5,8 @@
 //! - `acceptance.rs`: the estimate of 1/p_acc (000 eqs. 2.56-2.66), with its angular bounds;
 //! - `merge.rs`: the merges from the light side (`upg`) and from the camera side
 //!   (`upg-camera`), gathered and estimated together per eye vertex;
+//! - `blend.rs`: `vcm-upg`, each merge made by VCM's density estimate or by UPG's gather from
+//!   the light side, chosen by the length of its tentative ray;
 //! - here: [`Deferred`], the weight term of a merge that only the sub-path's next vertex can
 //!   decide, and [`UpgCounters`], the tentative-ray work.
 
@@ -14,6 +16,7 @@ use super::Counters;
 use std::time::Duration;
 
 pub mod acceptance;
+pub mod blend;
 pub mod merge;
 
 /// A merge at a sub-path's previous vertex gathered from the other side (VmHere::Deferred):
@@ -90,6 +93,8 @@ pub struct UpgCounters {
     pub packet_rays: u64,
     /// Merges dropped at the trial cap.
     pub capped: u64,
+    /// `vcm-upg`: merges made by density estimate instead of tentative rays.
+    pub density_merges: u64,
 }
 
 impl std::ops::Add for UpgCounters {
@@ -101,6 +106,7 @@ impl std::ops::Add for UpgCounters {
             tentative_rays: self.tentative_rays + other.tentative_rays,
             packet_rays: self.packet_rays + other.packet_rays,
             capped: self.capped + other.capped,
+            density_merges: self.density_merges + other.density_merges,
         }
     }
 }
@@ -111,6 +117,7 @@ impl UpgCounters {
     const TENTATIVE_RAYS: &'static str = "upg_tentative_rays";
     const PACKET_RAYS: &'static str = "upg_packet_rays";
     const CAPPED: &'static str = "upg_capped_merges";
+    const DENSITY_MERGES: &'static str = "density_merges";
 
     /// The counters as the integrator reports them ([`super::Integrator::counters`]).
     pub fn named(&self) -> Counters {
@@ -120,6 +127,7 @@ impl UpgCounters {
             (Self::TENTATIVE_RAYS, self.tentative_rays),
             (Self::PACKET_RAYS, self.packet_rays),
             (Self::CAPPED, self.capped),
+            (Self::DENSITY_MERGES, self.density_merges),
         ])
     }
 
@@ -132,6 +140,7 @@ impl UpgCounters {
             tentative_rays: get(Self::TENTATIVE_RAYS),
             packet_rays: get(Self::PACKET_RAYS),
             capped: get(Self::CAPPED),
+            density_merges: get(Self::DENSITY_MERGES),
         };
         (upg.merges > 0).then_some(upg)
     }
