@@ -117,8 +117,9 @@ enum MergeMis {
 
 /// A light vertex as a merge reads it, in 20 bytes (its position is the grid's): the incoming
 /// direction in octahedral coordinates, d^VCM and the [`MergeMis`] quantity in f32, and in 64
-/// bits the throughput ([`pack_rgb`], 47 bits) and the path length (16 bits; longer light
-/// sub-paths, which no albedo makes, would be taken as 65535 segments long).
+/// bits the throughput ([`pack_rgb`], 47 bits) and the path length (16 bits; a light sub-path
+/// longer than 65535 segments, which roulette all but never leaves, would be taken as that
+/// long).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 struct Packed {
     wo: u32,
@@ -153,6 +154,7 @@ impl Packed {
         (self.bits() >> PATH_LENGTH_SHIFT) as u32 & 0xffff
     }
 
+    /// The vertex as a merge of `form` reads it; the MIS quantities it does not read are zero.
     #[inline]
     fn unpack(&self, form: MergeMis) -> MergeVertex {
         let [d_vcm, second] = self.mis;
