@@ -274,17 +274,60 @@ pub struct HashGrid {
 }
 
 impl HashGrid {
-    /// Builds the grid over `points` for queries of the given radius (> 0).
+    /// Builds the grid over `points` for queries of the given radius (> 0), the same grid as
+    /// [`Self::rebuild`]'s, in less memory: the (key, index) pairs are sorted in place, 8 bytes
+    /// a point (16 where cell keys take more than 32 bits) instead of the two 24-byte buffers
+    /// of the radix sort, and the positions are fetched through the indices afterwards. What
+    /// one-stage merging builds over the light vertices of an iteration, the largest set it
+    /// holds; a one-off grid keeps only what queries read.
     pub fn build(points: &[Vec3], radius: f32) -> Self {
         let mut grid = HashGrid::default();
-        grid.rebuild(points, radius);
-        // A one-off grid keeps only what queries read.
-        grid.narrow = Default::default();
-        grid.wide = Default::default();
+        let bounds = bounds(points);
+        let runs = if grid.crowded(points, bounds, radius) {
+            CellRuns::Triplets
+        } else {
+            CellRuns::Pairs
+        };
+        grid.set_cells(radius, runs);
+        if !points.is_empty() {
+            assert!(
+                points.len() < u32::MAX as usize,
+                "fewer than u32::MAX points"
+            );
+            if grid.fit_key_space(bounds) <= 32 {
+                grid.sort_in_place::<u64>(points);
+            } else {
+                grid.sort_in_place::<u128>(points);
+            }
+        }
+        grid.fill_table();
         grid.cells = Vec::new();
         grid.histograms = Vec::new();
         grid.sample_keys = Vec::new();
         grid
+    }
+
+    /// [`Self::arrange`] with the (key, index) pairs sorted in place: pairs are distinct, so
+    /// any sort gives the stable sort's order.
+    fn sort_in_place<T: Item>(&mut self, points: &[Vec3]) {
+        let mut items: Vec<T> = Vec::with_capacity(points.len());
+        let grid = &*self;
+        items.par_extend(
+            points
+                .par_iter()
+                .enumerate()
+                .map(|(i, &p)| T::new(grid.key_of(p), i as u32)),
+        );
+        items.par_sort_unstable();
+        let items = &items;
+        self.place_sorted(
+            points.len(),
+            |i| items[i].key(),
+            |i| {
+                let index = items[i].index();
+                (points[index as usize].to_array(), index)
+            },
+        );
     }
 
     /// Rebuilds the grid over `points` for the given radius (> 0), reusing its buffers: once
@@ -607,26 +650,41 @@ impl HashGrid {
                 }
             });
         radix_sort(records, scratch, &mut self.histograms, bits);
+        let records = &*records;
+        self.place_sorted(
+            n,
+            |i| records[i].item.key(),
+            |i| (records[i].position, records[i].item.index()),
+        );
+    }
 
+    /// Copies the `n` points, sorted by cell, into cell order and finds the distinct cells:
+    /// `key(i)` is the cell key of the i-th point of that order, `point(i)` its position and
+    /// its index in the input.
+    fn place_sorted(
+        &mut self,
+        n: usize,
+        key: impl Fn(usize) -> u64 + Sync,
+        point: impl Fn(usize) -> ([f32; 3], u32) + Sync,
+    ) {
         // One pass splits the sorted points into the query's arrays and counts the cells that
         // end in each chunk.
-        let records = &*records;
-        let key = |i: usize| records[i].item.key();
         let is_end = |i: usize| i + 1 == n || key(i) != key(i + 1);
         let chunks = n.div_ceil(CHUNK);
         self.points.reset(n);
         let ends_per_chunk = &mut self.histograms;
         ends_per_chunk.clear();
         ends_per_chunk.resize(chunks, 0);
-        records
-            .par_chunks(CHUNK)
-            .zip(self.points.groups.par_chunks_mut(CHUNK / GROUP))
+        self.points
+            .groups
+            .par_chunks_mut(CHUNK / GROUP)
             .zip(ends_per_chunk.par_iter_mut())
             .enumerate()
-            .for_each(|(chunk, ((part, groups), ends))| {
+            .for_each(|(chunk, (groups, ends))| {
                 let start = chunk * CHUNK;
-                for (i, record) in part.iter().enumerate() {
-                    groups[i / GROUP].set(i % GROUP, record.position, record.item.index());
+                for i in 0..CHUNK.min(n - start) {
+                    let (position, index) = point(start + i);
+                    groups[i / GROUP].set(i % GROUP, position, index);
                     *ends += u32::from(is_end(start + i));
                 }
             });
@@ -774,7 +832,7 @@ struct Record<T> {
 }
 
 /// A cell key and a point index packed into one integer (key above, index in the low 32 bits).
-trait Item: Copy + Default + Send + Sync {
+trait Item: Copy + Default + Ord + Send + Sync {
     fn new(key: u64, index: u32) -> Self;
     fn key(self) -> u64;
     fn index(self) -> u32;
@@ -1275,6 +1333,32 @@ mod tests {
         }
         assert_eq!(points.len(), n);
         assert_eq!(points.index_of(140), 240);
+    }
+
+    /// The in-place build gives the radix sort's grid, slot for slot: sparse and crowded sets,
+    /// keys of at most and of more than 32 bits (points far apart for the radius).
+    #[test]
+    fn in_place_build_is_the_rebuild() {
+        let mut rng = Rng::for_sample(9, 0, 0, Stream::Eye);
+        let mut grid = HashGrid::default();
+        let mut wide = Vec::new();
+        for (kind, r) in [(0, 0.01), (1, 0.002), (1, 0.3), (2, 1e-4), (0, 1e-5)] {
+            let points = random_points(&mut rng, 50_000, kind);
+            grid.rebuild(&points, r);
+            let mut built = HashGrid::build(&points, r);
+            assert!(built.len() == points.len() && built.runs() == grid.runs());
+            let slots: Vec<u32> = built.indices().collect();
+            assert!(slots.iter().copied().eq(grid.indices().collect::<Vec<_>>()));
+            wide.push(built.fit_key_space(bounds(&points)) > 32);
+            for &q in points.iter().step_by(97) {
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                grid.query(q, |i, _| a.push(i));
+                built.query(q, |i, _| b.push(i));
+                assert_eq!(a, b, "kind {kind} radius {r}");
+            }
+        }
+        assert!(wide.contains(&true) && wide.contains(&false), "{wide:?}");
+        assert!(HashGrid::build(&[], 0.1).is_empty());
     }
 
     #[test]

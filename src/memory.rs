@@ -10,6 +10,7 @@
 use crate::integrator::subpath::MergeVertex;
 use crate::integrator::vcm::{LightVertex, ONE_STAGE_VERTEX_BYTES};
 use crate::options::{MemoryLayout, OptionName, Technique};
+use glam::Vec3;
 use std::fmt;
 use thiserror::Error;
 
@@ -40,14 +41,26 @@ fn two_stage_vertex_bytes() -> u64 {
         + 2 * 24
 }
 
-/// Bytes per light vertex of the one-stage layout at its peak: in the eye pass, the previous
-/// iteration's vertices as merges read them with their grid, and this iteration's as they
-/// are stored; at the iteration's end, when the previous ones are freed, this iteration's,
-/// the grid being built over them with its sort buffers, then their copy in the grid's order.
+/// Bytes per light vertex of the in-place grid build's sort: a (key, index) pair, 16 bytes
+/// where cell keys take more than 32 bits, 8 otherwise.
+const IN_PLACE_SORT_BYTES: u64 = 16;
+
+/// Bytes per distinct cell while the grid is built (its key and the end of its range), at most
+/// one cell a point.
+const CELL_BYTES: u64 = 16;
+
+/// Bytes per light vertex of the one-stage layout at its peak, the most of its phases: in the
+/// eye pass, the previous iteration's packed vertices (a stored vertex without its position,
+/// which the grid keeps) with their grid, and this iteration's as they are stored; at the
+/// iteration's end, the previous ones freed, this iteration's with the grid being built over
+/// them (its sort in place and its cells), then their copy in the grid's order.
 fn one_stage_vertex_bytes() -> u64 {
-    let merge = std::mem::size_of::<MergeVertex>() as u64;
     let stored = ONE_STAGE_VERTEX_BYTES as u64;
-    (merge + GRID_BYTES + stored).max(stored + GRID_BYTES + 2 * 24)
+    let merge = stored - std::mem::size_of::<Vec3>() as u64;
+    let eye_pass = merge + GRID_BYTES + stored;
+    let build = stored + IN_PLACE_SORT_BYTES + GRID_BYTES + CELL_BYTES;
+    let reorder = 2 * merge + GRID_BYTES;
+    eye_pass.max(build).max(reorder)
 }
 
 /// The parts of a render's memory, in bytes, and the light vertices' layout where it has any.
@@ -257,6 +270,21 @@ mod tests {
         assert!(err.contains("path length"), "{err}");
         let upg = estimate(Technique::Upg, MemoryLayout::OneStage, pixels, 10, 3, 2);
         assert_eq!(upg.layout, Some(MemoryLayout::TwoStage));
+    }
+
+    /// One-stage's estimate per light vertex holds what its eye pass holds at least (two
+    /// iterations' records, one with its position, and the grid's 16 bytes a point), and
+    /// stays below half of two-stage's.
+    #[test]
+    fn one_stage_counts_both_iterations() {
+        let stored = ONE_STAGE_VERTEX_BYTES as u64;
+        let held = 2 * stored - std::mem::size_of::<Vec3>() as u64 + 16;
+        assert!(
+            one_stage_vertex_bytes() >= held,
+            "{}",
+            one_stage_vertex_bytes()
+        );
+        assert!(2 * one_stage_vertex_bytes() < two_stage_vertex_bytes());
     }
 
     #[test]

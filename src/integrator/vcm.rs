@@ -44,7 +44,7 @@ use crate::options::{MemoryLayout, RenderOptions, Technique};
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
-use onestage::OneStage;
+use onestage::{MergeRecords, MergeVertices, OneStage};
 use rayon::prelude::*;
 use std::ops::ControlFlow;
 use std::time::Duration;
@@ -182,7 +182,7 @@ struct EyePass<'i> {
     iteration: u64,
     light: &'i LightPaths,
     grid: Option<&'i HashGrid>,
-    merge_vertices: &'i [MergeVertex],
+    merge_vertices: MergeVertices<'i>,
 }
 
 pub struct VertexCm<'a> {
@@ -864,7 +864,7 @@ impl<'a> VertexCm<'a> {
         bsdf: &Bsdf,
         hit: &SurfaceHit,
         gathered: Gathered,
-        vertices: &[MergeVertex],
+        vertices: &(impl MergeRecords + ?Sized),
     ) -> Rgb {
         let grid = gathered.grid;
         let max_length = self.ctx.max_path_length();
@@ -872,13 +872,11 @@ impl<'a> VertexCm<'a> {
         // The eye sub-path's own radius: the grid's, or with per-pixel radii another.
         grid.query_slot_batches_within(hit.position, Within::radius(w.radius), |batch| {
             let within_bounds = |slot: u32| {
-                let segments = vertices[slot as usize]
-                    .path_length
-                    .saturating_add(state.path_length);
+                let segments = vertices.path_length(slot).saturating_add(state.path_length);
                 segments <= max_length && !self.too_short(segments)
             };
             for slot in kept(batch, within_bounds) {
-                let lv = &vertices[slot as usize];
+                let lv = vertices.vertex(slot);
                 let eval = bsdf.eval(lv.wo);
                 if eval.f.is_black() {
                     continue;
@@ -1007,8 +1005,14 @@ impl<'a> VertexCm<'a> {
                 }
                 match (gathered, self.modes.gather) {
                     (Some(gathered), Gather::Density) => {
-                        let merged =
-                            self.merge(&w, &state, &bsdf, &hit, gathered, pass.merge_vertices);
+                        let merged = match pass.merge_vertices {
+                            MergeVertices::Whole(v) => {
+                                self.merge(&w, &state, &bsdf, &hit, gathered, v)
+                            }
+                            MergeVertices::Packed(v) => {
+                                self.merge(&w, &state, &bsdf, &hit, gathered, &v)
+                            }
+                        };
                         color += state.throughput * merged * w.vm_normalization;
                         if self.modes.ppm {
                             break;
@@ -1116,7 +1120,7 @@ impl Integrator for VertexCm<'_> {
             iteration,
             light,
             grid,
-            merge_vertices,
+            merge_vertices: MergeVertices::Whole(merge_vertices),
         };
         let (eye_stats, upg) = frame
             .par_iter_mut()
