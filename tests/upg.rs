@@ -93,7 +93,11 @@ fn upg_with_density_mis_agrees_with_bpt() {
         let mut o = with_density(floor_view(technique, 24), mode);
         o.radius = Some(0.1);
         let upg = render_stats(&scene, &o, 1024);
-        assert_agree(&format!("cornell-glossy: {technique:?} {mode:?}"), &upg, &bpt);
+        assert_agree(
+            &format!("cornell-glossy: {technique:?} {mode:?}"),
+            &upg,
+            &bpt,
+        );
     }
 }
 
