@@ -13,6 +13,8 @@
 //! side, whose clamped acceptance (000 eqs. (2.80)-(2.82)) binds at the larger radii, and
 //! with merge-only UPG, whose merges share each path among themselves, and with a radius of
 //! its own for every eye sub-path (001 sec. 6.1), the light sub-path carrying c^VC and c^VM.
+//! 002's density factors (VCM+, VCM*) are checked on VCM's merges and on UPG's from either
+//! side, deferred merges included, at three radii up to where UPG's clamp binds.
 
 mod common;
 

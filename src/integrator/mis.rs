@@ -7,7 +7,7 @@
 //!   connection.
 //! - [`VcmVertex`] and [`VcmWeights`]: SmallVCM's d^VCM, d^VC, d^VM of 001 eqs. (31)-(47), used
 //!   by `vcm.rs` for `vcm`, `bpm`, `ppm`, `lt`, `upg` and `upg-camera` (UPG with the clamped
-//!   acceptance of 000 eqs. (2.80)-(2.82)).
+//!   acceptance of 000 eqs. (2.80)-(2.82)), with 002's density factors where asked.
 //!
 //! Every quantity is stored "with the power already applied": `mis(x) = x^beta`, applied to
 //! each factor, so products and the ratio sums stay what 000 eq. (2.48) writes.
