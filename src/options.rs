@@ -177,8 +177,9 @@ impl MemoryLayout {
     }
 }
 
-/// 002's MIS heuristics for density estimates: the merge at x_i counts n_VM / k_i light
-/// sub-paths instead of n_VM, with k_i the expected number of light vertices in its radius.
+/// 002's MIS heuristics for merges (density estimates and UPG's): the merge at x_i counts
+/// n_VM / k_i light sub-paths instead of n_VM, with k_i the expected number of light vertices
+/// in its radius.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 pub enum DensityMis {
     /// 002 eq. (6).
@@ -244,7 +245,7 @@ pub struct RenderOptions {
     /// merge, and from which VCM's density estimate makes every one; smooth between.
     pub blend_near: f32,
     pub blend_far: f32,
-    /// `vcm`, `bpm`: 002's density-map heuristic instead of VCM's.
+    /// `vcm`, `bpm`, `upg`, `upg-camera`: 002's density-map heuristic instead of VCM's.
     pub density_mis: Option<DensityMis>,
     /// Iterations whose light vertices fill the density map; after them it is fixed (002
     /// sec. 5.1), so the weights are deterministic.
@@ -991,7 +992,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             }),
         },
         help: "weigh merges by the density of light vertices (002's VCM+ or VCM*)",
-        takes: |t| matches!(t, Technique::Vcm | Technique::Bpm),
+        takes: |t| matches!(t, Technique::Vcm | Technique::Bpm) || t.is_upg(),
         write: |o| o.density_mis.map(|d| d.name().into()),
         parse: |o, s| {
             o.density_mis = Some(by_name(&DensityMis::ALL, DensityMis::name, s)?);
@@ -1008,7 +1009,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             choices: None,
         },
         help: "iterations whose light vertices fill the density map",
-        takes: |t| matches!(t, Technique::Vcm | Technique::Bpm),
+        takes: |t| matches!(t, Technique::Vcm | Technique::Bpm) || t.is_upg(),
         write: |o| Some(o.density_map_iterations.to_string()),
         parse: |o, s| {
             o.density_map_iterations = count(s)?;
@@ -1379,6 +1380,13 @@ mod tests {
         assert_eq!(vcm(1.5, None, None).validate(), Ok(()));
         for density in DensityMis::ALL {
             assert_eq!(vcm(1.5, None, Some(density)).validate(), Ok(()));
+            for technique in [Technique::Upg, Technique::UpgCamera] {
+                let upg = RenderOptions {
+                    technique,
+                    ..vcm(1.5, None, Some(density))
+                };
+                assert_eq!(upg.validate(), Ok(()));
+            }
         }
         for bad in [
             vcm(0.0, None, None),

@@ -13,6 +13,8 @@
 //! side, whose clamped acceptance (000 eqs. (2.80)-(2.82)) binds at the larger radii, and
 //! with merge-only UPG, whose merges share each path among themselves, and with a radius of
 //! its own for every eye sub-path (001 sec. 6.1), the light sub-path carrying c^VC and c^VM.
+//! 002's density factors (VCM+, VCM*) are checked on VCM's merges and on UPG's from either
+//! side, deferred merges included, at three radii up to where UPG's clamp binds.
 
 mod common;
 
@@ -438,7 +440,7 @@ impl State {
             (here == VmHere::Valid, rho),
         );
         self.deferred = if !delta && here == VmHere::Deferred {
-            Deferred::new(w, ratio, cos_out)
+            Deferred::new(w, ratio, cos_out, rho)
         } else {
             Deferred::NONE
         };
@@ -702,6 +704,18 @@ fn vcm_weights_with(
     (vc, vm)
 }
 
+/// The techniques checked with a radius per eye sub-path whose light sub-paths are re-run.
+const PER_PIXEL: [(&str, Gather, Option<DensityMis>); 8] = [
+    ("upg", Gather::UpgLight, None),
+    ("upg-camera", Gather::UpgCamera, None),
+    ("vcm+", Gather::Density, Some(DensityMis::Plus)),
+    ("vcm*", Gather::Density, Some(DensityMis::Star)),
+    ("upg vcm+", Gather::UpgLight, Some(DensityMis::Plus)),
+    ("upg vcm*", Gather::UpgLight, Some(DensityMis::Star)),
+    ("upg-camera vcm+", Gather::UpgCamera, Some(DensityMis::Plus)),
+    ("upg-camera vcm*", Gather::UpgCamera, Some(DensityMis::Star)),
+];
+
 fn paths(scene_name: &str, seed: u64, count_per_length: usize, aim: Aim) -> (Scene, Vec<FullPath>) {
     let scene = load_scene(scene_name);
     let desc = scene.camera(None).unwrap().clone();
@@ -742,7 +756,7 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
         std::collections::HashMap::<&str, usize>::new(),
         std::collections::HashMap::<&str, usize>::new(),
     );
-    let mut reweighted = std::collections::HashMap::<&str, usize>::new();
+    let mut reweighted = std::collections::HashMap::<(&str, &str), usize>::new();
     for path in &paths {
         let q = evaluate(&setup, path);
         // A path the BSDFs cannot scatter along (light behind a surface) has no techniques.
@@ -828,23 +842,50 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
             let inv_k: Vec<f32> = (0..=q.k)
                 .map(|_| 10f32.powf(-3.0 * rng.next_f32()))
                 .collect();
+            // UPG's clamped merges take them too, at radii up to where the clamp binds.
             for mode in [DensityMis::Plus, DensityMis::Star] {
-                for radius in [1e-3, 1e-2, 0.1] {
-                    let plain = VcmWeights::new(power, radius, setup.n(), true, true);
-                    let w = plain.with_density(mode);
-                    let (vc, vm) = vcm_weights(&w, Gather::Density, path, &q, &inv_k);
-                    let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
-                    assert!(
-                        (sum - 1.0).abs() < 1e-4,
-                        "{name}: {mode:?} weights of a {}-segment path sum to {sum} \
-                         (beta {beta}, r {radius}): VC {vc:?} VM {vm:?}",
-                        q.k
-                    );
-                    let (plain_vc, plain_vm) = vcm_weights(&plain, Gather::Density, path, &q, &[]);
-                    let differs =
-                        |a: &[f32], b: &[f32]| a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-3);
-                    if differs(&vc, &plain_vc) || differs(&vm, &plain_vm) {
-                        *reweighted.entry(mode.name()).or_insert(0) += 1;
+                for (label, gather, radii) in [
+                    ("vcm", Gather::Density, [1e-3, 1e-2, 0.1]),
+                    ("upg", Gather::UpgLight, [1e-2, 0.1, 1.0]),
+                    ("upg-camera", Gather::UpgCamera, [1e-2, 0.1, 1.0]),
+                ] {
+                    for radius in radii {
+                        let plain = if gather == Gather::Density {
+                            VcmWeights::new(power, radius, setup.n(), true, true)
+                        } else {
+                            VcmWeights::clamped(power, radius, setup.n())
+                        };
+                        let w = plain.with_density(mode);
+                        let (vc, vm) = vcm_weights(&w, gather, path, &q, &inv_k);
+                        let sum: f32 = vc.iter().sum::<f32>() + vm.iter().sum::<f32>();
+                        assert!(
+                            (sum - 1.0).abs() < 1e-4,
+                            "{name}: {label} {mode:?} weights of a {}-segment path sum to \
+                             {sum} (beta {beta}, r {radius}): VC {vc:?} VM {vm:?}",
+                            q.k
+                        );
+                        let (plain_vc, plain_vm) = vcm_weights(&plain, gather, path, &q, &[]);
+                        let differs = |a: &[f32], b: &[f32]| {
+                            a.iter().zip(b).any(|(x, y)| (x - y).abs() > 1e-3)
+                        };
+                        if differs(&vc, &plain_vc) || differs(&vm, &plain_vm) {
+                            *reweighted.entry((label, mode.name())).or_insert(0) += 1;
+                        }
+                        if gather != Gather::Density {
+                            // Merge-only UPG: the merges share the path by their density
+                            // factors alone.
+                            let only = VcmWeights::clamped_merges_only(power, radius, setup.n())
+                                .with_density(mode);
+                            let (_, only_vm) = vcm_weights(&only, gather, path, &q, &inv_k);
+                            let sum: f32 = only_vm.iter().sum();
+                            let merges = only_vm.iter().filter(|&&m| m > 0.0).count();
+                            assert!(
+                                merges == 0 || (sum - 1.0).abs() < 1e-4,
+                                "{name}: merge-only {label} {mode:?} weights of a {}-segment \
+                                 path sum to {sum} (beta {beta}, r {radius}): {only_vm:?}",
+                                q.k
+                            );
+                        }
                     }
                 }
             }
@@ -887,18 +928,16 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                 let k = density[i] * std::f32::consts::PI * r * r;
                 Some(1.0 / k.clamp(1.0, n))
             };
-            for (mode, gather, density) in [
-                ("upg", Gather::UpgLight, None),
-                ("upg-camera", Gather::UpgCamera, None),
-                ("vcm+", Gather::Density, Some(DensityMis::Plus)),
-                ("vcm*", Gather::Density, Some(DensityMis::Star)),
-            ] {
+            for (mode, gather, density) in PER_PIXEL {
                 for gather_radius in [1e-2, 0.1] {
+                    let plain = if gather == Gather::Density {
+                        VcmWeights::new(power, gather_radius, n, true, true)
+                    } else {
+                        VcmWeights::clamped(power, gather_radius, n)
+                    };
                     let light_w = match density {
-                        Some(d) => {
-                            VcmWeights::new(power, gather_radius, n, true, true).with_density(d)
-                        }
-                        None => VcmWeights::clamped(power, gather_radius, n),
+                        Some(d) => plain.with_density(d),
+                        None => plain,
                     };
                     let radius = 10f32.powf(-3.0 * rng.next_f32());
                     let eye_w = light_w.at_radius(radius);
@@ -971,7 +1010,7 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
         per_pixel_mixed > 0,
         "{name}: no per-pixel radius weighed merges against connections"
     );
-    for mode in ["upg", "upg-camera", "vcm+", "vcm*"] {
+    for (mode, _, _) in PER_PIXEL {
         let (mixed, needed) = (
             replay_mixed.get(mode).copied().unwrap_or(0),
             replay_needed.get(mode).copied().unwrap_or(0),
@@ -986,11 +1025,13 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
         );
     }
     assert!(clamped > 0, "{name}: the clamp never bound");
-    for mode in [DensityMis::Plus, DensityMis::Star] {
-        assert!(
-            reweighted.get(mode.name()).copied().unwrap_or(0) > 0,
-            "{name}: {mode:?} never changed a weight"
-        );
+    for label in ["vcm", "upg", "upg-camera"] {
+        for mode in [DensityMis::Plus, DensityMis::Star] {
+            assert!(
+                reweighted.get(&(label, mode.name())).copied().unwrap_or(0) > 0,
+                "{name}: {label} {mode:?} never changed a weight"
+            );
+        }
     }
     assert!(
         shared_merges > 0,

@@ -191,15 +191,17 @@ fn per_pixel_radius_passes_the_furnace() {
 }
 
 /// Per-pixel radii where light sub-paths cannot carry radius-free sums and re-run their MIS
-/// steps at every eye sub-path's radius instead: upg (clamped acceptance, 000 eq. 2.80) and vcm
-/// with 002's VCM* (density factors) in the furnace, within 1% with a standard error below
-/// 0.2%. Two pixel footprints, so that the density map's k exceeds 1 in places.
+/// steps at every eye sub-path's radius instead: upg (clamped acceptance, 000 eq. 2.80), vcm
+/// with 002's VCM* (density factors) and upg-camera with both in the furnace, within 1% with a
+/// standard error below 0.2%. Two pixel footprints, so that the density map's k exceeds 1 in
+/// places.
 #[test]
 fn per_pixel_radius_with_upg_and_the_density_map_passes_the_furnace() {
     let scene = load("furnace");
     for (technique, density) in [
         (Technique::Upg, None),
         (Technique::Vcm, Some(DensityMis::Star)),
+        (Technique::UpgCamera, Some(DensityMis::Star)),
     ] {
         let mut o = options(technique, 32);
         o.radius_pixels = Some(2.0);

@@ -1,5 +1,6 @@
 //! The density map of 002 sec. 5.1: how many light vertices a merge at x can expect, k(x), for
-//! the VCM+ and VCM* weights (`mis.rs`, [`VcmWeights::with_density`]).
+//! the VCM+ and VCM* weights (`mis.rs`, [`VcmWeights::with_density`]) of density-estimate and
+//! UPG merges alike.
 //!
 //! A hash grid of counters over cells of side r_c = 2 r_1 (twice the first iteration's merge
 //! radius: cells that hold several merges' worth of light vertices, yet stay local). After

@@ -7,7 +7,7 @@
 //!   connection.
 //! - [`VcmVertex`] and [`VcmWeights`]: SmallVCM's d^VCM, d^VC, d^VM of 001 eqs. (31)-(47), used
 //!   by `vcm.rs` for `vcm`, `bpm`, `ppm`, `lt`, `upg` and `upg-camera` (UPG with the clamped
-//!   acceptance of 000 eqs. (2.80)-(2.82)).
+//!   acceptance of 000 eqs. (2.80)-(2.82)), with 002's density factors where asked.
 //!
 //! Every quantity is stored "with the power already applied": `mis(x) = x^beta`, applied to
 //! each factor, so products and the ratio sums stay what 000 eq. (2.48) writes.
@@ -408,6 +408,18 @@ impl VcmWeights {
     /// d^VC + nu d^VC_VM. Each sub-path carries its own S and C ([`Self::visit`]); a weight
     /// adds the two sub-paths' (counting a merge vertex once) and applies nu.
     /// Without connections (bpm) only merges compete, nu cancels and VCM* is VCM+.
+    ///
+    /// UPG's clamped merges (000 eqs. 2.80-2.82) take the same factors. 002 eq. (6) counts
+    /// c_j = n_VM / k_j light sub-paths at a merge at x_j where VCM counts n_VM, and 000
+    /// eq. 2.80 clamps each sub-path's acceptance to min(p(x_j) pi r^2, 1); so the merge's
+    /// eta_j = c_j min(pi r^2, 1 / p(x_j)) = (n_VM / k_j) min(pi r^2, 1 / p(x_j)), in the
+    /// powered form mis(eta_j) = [`Self::eta`] rho_j: the clamp and the density factor multiply,
+    /// and every term that carries the merge, deferred ones included ([`Self::settle_merge`]),
+    /// carries both. VCM*'s normalisation over the path (002 eq. (7)) is VCM's: the factor
+    /// common to a path's merge terms, applied as nu. A UPG merge joins its two sub-paths at
+    /// one vertex, the eye vertex (`upg`) or the light vertex (`upg-camera`): the sub-path
+    /// carried across the explicit connection arrives there and counts it, as both
+    /// sub-paths of a density estimate count theirs, and [`Self::merge`] counts it once.
     pub fn with_density(self, density: DensityMis) -> Self {
         VcmWeights {
             density: Some(density),
@@ -485,6 +497,28 @@ impl VcmWeights {
                 (self.mis(inv_k), inv_k)
             }
             None => NO_DENSITY,
+        }
+    }
+
+    /// `v` with the terms of a merge that a later step decided (UPG's deferred merges, 000
+    /// eqs. 2.81-2.82): `factor` is its term in d^VM (001 eq. (36)), the products carried since
+    /// the merge vertex with its density factor rho, and `inv_pdf` = mis(1 / p) of the merge
+    /// vertex's gathering-side area pdf gives its eta_j in d^VC (001 eq. (35)), among VCM*'s
+    /// merge terms.
+    pub fn settle_merge(&self, v: VcmVertex, factor: f32, inv_pdf: f32) -> VcmVertex {
+        let eta = factor * self.eta(inv_pdf);
+        if self.density == Some(DensityMis::Star) {
+            VcmVertex {
+                d_vc_vm: v.d_vc_vm + eta,
+                d_vm: v.d_vm + factor,
+                ..v
+            }
+        } else {
+            VcmVertex {
+                d_vc: v.d_vc + eta,
+                d_vm: v.d_vm + factor,
+                ..v
+            }
         }
     }
 

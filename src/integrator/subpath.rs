@@ -24,8 +24,9 @@ pub trait PendingMis: Copy + Default + Send + Sync {
     fn settle(&self, w: &VcmWeights, v: VcmVertex, rev_pdf_w: f32) -> VcmVertex;
 
     /// The terms of a merge at the vertex being left, deferred to the next vertex: `ratio` is
-    /// what [`VcmWeights::scatter`] returned, `cos_out` the |cos| of the sampled direction.
-    fn leaving(w: &VcmWeights, ratio: f32, cos_out: f32) -> Self;
+    /// what [`VcmWeights::scatter`] returned, `cos_out` the |cos| of the sampled direction,
+    /// `rho` the merge's density factor (002; 1 without the density map).
+    fn leaving(w: &VcmWeights, ratio: f32, cos_out: f32, rho: f32) -> Self;
 
     /// Carried across a segment, like d^VC (001 eq. (35)).
     fn arrive(&mut self, a: Arrival);
@@ -123,7 +124,7 @@ impl MisStep {
                 let merge_here = (here == VmHere::Valid, density.0);
                 let ratio = w.scatter(mis, cos_out, pdf_w, rev_pdf_w, delta, merge_here);
                 *pending = if !delta && here == VmHere::Deferred {
-                    P::leaving(w, ratio, cos_out)
+                    P::leaving(w, ratio, cos_out, density.0)
                 } else {
                     P::default()
                 };
@@ -274,6 +275,9 @@ pub struct EyeVertex<'b> {
     /// Throughput and MIS quantities on arrival, before scattering on.
     pub throughput: Rgb,
     pub mis: VcmVertex,
+    /// The density factor rho of a merge there and its 1 / k (002; 1 and 0 without the
+    /// density map).
+    pub density: (f32, f32),
     pub prev_surface: bool,
     pub path_length: u32,
 }

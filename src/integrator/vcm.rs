@@ -266,17 +266,18 @@ impl<'a> VertexCm<'a> {
     fn weights(&self, iteration: u64) -> VcmWeights {
         let radius = self.shrunk(iteration, self.base_radius);
         let (power, paths) = (Power(self.ctx.options.beta), self.light_paths() as f32);
-        if self.modes.gather.clamps() {
-            return if self.modes.vc {
-                VcmWeights::clamped(power, radius, paths)
-            } else {
-                VcmWeights::clamped_merges_only(power, radius, paths)
-            };
-        }
-        let w = VcmWeights::new(power, radius, paths, self.modes.vc, self.modes.vm);
-        if self.resolves() {
-            return w.radius_free();
-        }
+        let w = if !self.modes.gather.clamps() {
+            let w = VcmWeights::new(power, radius, paths, self.modes.vc, self.modes.vm);
+            if self.resolves() {
+                return w.radius_free();
+            }
+            w
+        } else if self.modes.vc {
+            VcmWeights::clamped(power, radius, paths)
+        } else {
+            VcmWeights::clamped_merges_only(power, radius, paths)
+        };
+        // UPG's clamped merges take 002's factors as VCM's do (VcmWeights::with_density).
         match (self.ctx.options.density_mis, &self.density) {
             (Some(mode), Some(map)) if map.iterations() > 0 => w.with_density(mode),
             _ => w,
@@ -919,10 +920,12 @@ impl<'a> VertexCm<'a> {
         let light_path = pass.light.for_pixel(pixel);
         let reweigh = |w: &VcmWeights, index: usize| pass.light.reweighed(w, index, self.inv_k(w));
         let reweigh: Option<&Reweigh> = self.replays().then_some(&reweigh);
+        let inv_k = |w: &VcmWeights, x: Vec3| self.inv_k(w)(x);
         let gathered = pass.grid.map(|grid| Gathered {
             vertices: &pass.light.vertices,
             grid,
             reweigh,
+            inv_k: &inv_k,
         });
         let mut sampler =
             Sampler::eye(self.ctx.options.sampler, seed, pass.iteration, pixel as u64);
@@ -1046,6 +1049,7 @@ impl<'a> VertexCm<'a> {
                     bsdf: bsdf.clone(),
                     throughput: state.throughput,
                     mis: state.mis,
+                    density: state.density,
                     prev_surface: state.prev_surface,
                     path_length: state.path_length,
                 });

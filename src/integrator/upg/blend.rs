@@ -188,7 +188,12 @@ impl<'s> Blend<'s> {
             Neighbour::towards_light(q.path_length, q.after_surface),
             Neighbour::Surface,
         );
-        let light = carry(w, &link, q.mis_at(w, link.from_eval.rev_pdf_w), merge_at_q);
+        let light = carry(
+            w,
+            &link,
+            q.mis_at(w, link.from_eval.rev_pdf_w),
+            (merge_at_q, q.rho),
+        );
         let weight = w.merge(
             &light,
             &state.mis_at(w, link.to_eval.rev_pdf_w),

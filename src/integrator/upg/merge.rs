@@ -4,10 +4,11 @@
 //! which tentative rays from that neighbour estimate (`acceptance.rs`, 000 eq. 2.65). The MIS
 //! weight is VCM's with the clamped acceptance (000 eqs. 2.80-2.82): the gathering side's
 //! quantities are carried across the connection to the merge vertex, and the merge is weighed
-//! there like a density-estimate merge with its own eta_j.
+//! there like a density-estimate merge with its own eta_j, times 002's density factor rho_j
+//! with `--density-mis` ([`VcmWeights::with_density`]).
 
 use super::super::connection::Connection;
-use super::super::mis::{Gather, Neighbour, VcmVertex, VcmWeights, VmHere, NO_DENSITY};
+use super::super::mis::{Gather, Neighbour, VcmVertex, VcmWeights, VmHere};
 use super::super::subpath::{EyeVertex, LightVertex, SubPath};
 use super::super::IterationStats;
 use super::acceptance::{AngularBound, Estimator, Outcome, StoredVerticesOnly, TentativeTracer};
@@ -25,6 +26,10 @@ use glam::Vec3;
 /// [`super::super::subpath::LightPaths::reweighed`]).
 pub type Reweigh<'i> = dyn Fn(&VcmWeights, usize) -> LightVertex<Deferred> + 'i;
 
+/// 1 / k at a position for merges of the given weights' radius (002 eq. (6)): the density
+/// map's lookup, `None` without it.
+pub type InvK<'i> = dyn Fn(&VcmWeights, Vec3) -> Option<f32> + 'i;
+
 /// The light vertices of one iteration and the grid over them.
 #[derive(Clone, Copy)]
 pub struct Gathered<'i> {
@@ -33,6 +38,8 @@ pub struct Gathered<'i> {
     /// Where the stored MIS quantities are not the eye sub-path's radius's: the vertices
     /// re-run for it.
     pub reweigh: Option<&'i Reweigh<'i>>,
+    /// The density map's lookup, for the merge vertex a carried sub-path arrives at.
+    pub inv_k: &'i InvK<'i>,
 }
 
 impl Gathered<'_> {
@@ -128,13 +135,20 @@ impl<'s> UpgMerges<'s> {
             let merge_at_q = self
                 .gather
                 .merge_at(Neighbour::surface_if(q.after_surface), Neighbour::Surface);
-            let light = carry(w, &link, q.mis_at(w, link.from_eval.rev_pdf_w), merge_at_q);
+            // The merge vertex is the eye vertex, whose density factor the eye sub-path holds.
+            let mut light = carry(
+                w,
+                &link,
+                q.mis_at(w, link.from_eval.rev_pdf_w),
+                (merge_at_q, q.rho),
+            );
+            w.visit(&mut light, state.density.1);
             let weight = w.merge(
                 &light,
                 &state.mis_at(w, link.to_eval.rev_pdf_w),
                 (link.to_eval.pdf_w, link.to_eval.rev_pdf_w),
                 w.eta(light.d_vcm),
-                NO_DENSITY,
+                state.density,
             );
             let roulette = self.roulette_probability(&q_bsdf, q.path_length);
             tentative.push(bound, q.throughput * link.value * (weight / roulette));
@@ -186,7 +200,10 @@ impl<'s> UpgMerges<'s> {
             let merge_at_prev = self
                 .gather
                 .merge_at(Neighbour::Surface, Neighbour::surface_if(prev.prev_surface));
-            let eye = carry(w, &link, prev.mis, merge_at_prev);
+            let mut eye = carry(w, &link, prev.mis, (merge_at_prev, prev.density.0));
+            // The merge vertex is the light vertex: the eye sub-path arrives there and takes
+            // its density factor, as the light sub-path did.
+            let density = w.density_at(&mut eye, (gathered.inv_k)(w, photon.position));
             // At the merge vertex the eye side samples towards the light vertex's predecessor:
             // the photon's BSDF pdfs, seen the other way round.
             let weight = w.merge(
@@ -194,7 +211,7 @@ impl<'s> UpgMerges<'s> {
                 &eye,
                 (link.to_eval.rev_pdf_w, link.to_eval.pdf_w),
                 w.eta(eye.d_vcm),
-                NO_DENSITY,
+                density,
             );
             let roulette = self.roulette_probability(&prev.bsdf, prev.path_length);
             tentative.push(
@@ -256,12 +273,13 @@ impl<'s> UpgMerges<'s> {
 }
 
 /// The MIS quantities of the sub-path that ends at the first vertex of `c` (`at_from`),
-/// carried across it to the second (001 eqs. (34)-(36)).
+/// carried across it to the second (001 eqs. (34)-(36)); a merge at the first vertex is a
+/// technique or not as `merge_at_from` says, with density factor `rho` (002 eq. (6)).
 pub(super) fn carry(
     w: &VcmWeights,
     c: &Connection,
     at_from: VcmVertex,
-    merge_at_from: VmHere,
+    (merge_at_from, rho): (VmHere, f32),
 ) -> VcmVertex {
     let mut v = at_from;
     w.scatter(
@@ -270,7 +288,7 @@ pub(super) fn carry(
         c.from_eval.pdf_w,
         c.from_eval.rev_pdf_w,
         false,
-        (merge_at_from == VmHere::Valid, 1.0),
+        (merge_at_from == VmHere::Valid, rho),
     );
     w.arrive(&mut v, c.distance, c.cos_to, true);
     v

@@ -25,7 +25,8 @@ pub mod merge;
 /// known only once a use of the vertex fixes its reverse direction (000 eqs. 2.81-2.82).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Deferred {
-    /// The merge's factor in d^VC before its eta, carried like d^VC's other terms; 0 when none.
+    /// The merge's factor in d^VC before its eta, its density factor rho included, carried
+    /// like d^VC's other terms; 0 when none.
     vm: f32,
     /// mis(|cos| / d^2) of the merge vertex seen from the current vertex.
     g: f32,
@@ -35,18 +36,19 @@ impl Deferred {
     pub const NONE: Deferred = Deferred { vm: 0.0, g: 0.0 };
 
     /// Leaving a merge vertex whose merge is deferred: `ratio` is what [`VcmWeights::scatter`]
-    /// returned, `cos_out` the |cos| of the sampled direction there.
-    pub fn new(w: &VcmWeights, ratio: f32, cos_out: f32) -> Self {
+    /// returned, `cos_out` the |cos| of the sampled direction there, `rho` the merge's density
+    /// factor (002 eq. (6); 1 without the density map).
+    pub fn new(w: &VcmWeights, ratio: f32, cos_out: f32, rho: f32) -> Self {
         Deferred {
-            vm: ratio,
+            vm: ratio * rho,
             g: w.mis(cos_out),
         }
     }
 }
 
 impl PendingMis for Deferred {
-    fn leaving(w: &VcmWeights, ratio: f32, cos_out: f32) -> Self {
-        Deferred::new(w, ratio, cos_out)
+    fn leaving(w: &VcmWeights, ratio: f32, cos_out: f32, rho: f32) -> Self {
+        Deferred::new(w, ratio, cos_out, rho)
     }
 
     /// Carried across a segment, like d^VC (001 eq. (35)); the merge vertex is sampled from the
@@ -65,18 +67,14 @@ impl PendingMis for Deferred {
     }
 
     /// `v` with the merge's terms added once `rev_pdf_w`, the pdf with which the current vertex
-    /// samples the merge vertex, gives its gathering-side area pdf: eta_j in d^VC (001 eq. (35),
-    /// 000 eq. 2.81) and 1 in d^VM (001 eq. (36)).
+    /// samples the merge vertex, gives its gathering-side area pdf: eta_j rho in d^VC (001
+    /// eq. (35), 000 eq. 2.81, 002 eq. (6)) and rho in d^VM (001 eq. (36)).
     fn settle(&self, w: &VcmWeights, v: VcmVertex, rev_pdf_w: f32) -> VcmVertex {
         if self.vm == 0.0 {
             return v;
         }
         let pdf = w.mis(rev_pdf_w) * self.g;
-        VcmVertex {
-            d_vc: v.d_vc + self.vm * w.eta(1.0 / pdf),
-            d_vm: v.d_vm + self.vm,
-            ..v
-        }
+        w.settle_merge(v, self.vm, 1.0 / pdf)
     }
 }
 
