@@ -2,8 +2,8 @@
 //! integrated numerically (000 eqs. 2.57, 2.65) for lambert, Phong, Trowbridge-Reitz conductor
 //! and dielectric lobes (reflected and refracted, from either side, isotropic and
 //! anisotropic), the layered materials (rough and smooth coatings over diffuse and conductor
-//! bases) and diffuse transmission, oblique and near-grazing targets, short distances and an
-//! occluder. Packets and single rays agree trial
+//! bases) and diffuse transmission, oblique and near-grazing targets, short distances, cones
+//! as wide as the sphere allows and an occluder. Packets and single rays agree trial
 //! for trial; the whole-lobe fallback is the BSDF's own sampling; the cap is reported; each lobe
 //! shape's polar bound holds the probability of its interval.
 
@@ -635,6 +635,73 @@ fn configs() -> Vec<Config> {
                 30.0,
             ),
             -0.2,
+        ),
+        // Cones as wide as the sphere allows (r close to d): the bound spans most of the
+        // hemisphere, holds the lobe's axis or crosses the horizon, where a bound a little too
+        // narrow would bias 1/p_acc low by a share that grows with r.
+        cfg(
+            "lambert, d = 1.25r, wide cone",
+            lambert(),
+            30.0,
+            (75.0, 30.0),
+            1.25,
+            45.0,
+        ),
+        cfg(
+            "lambert, d = 1.05r, at horizon",
+            lambert(),
+            50.0,
+            (80.0, 200.0),
+            1.05,
+            10.0,
+        ),
+        cfg(
+            "phong 10, d = 1.3r",
+            phong(0.0, 0.8, 10.0),
+            45.0,
+            (60.0, 60.0),
+            1.3,
+            20.0,
+        ),
+        cfg(
+            "phong 100, d = 1.5r, off peak",
+            phong(0.0, 0.8, 100.0),
+            45.0,
+            (45.0, 90.0),
+            1.5,
+            30.0,
+        ),
+        cfg(
+            "mixture 10, d = 1.3r",
+            phong(0.3, 0.5, 10.0),
+            30.0,
+            (70.0, 30.0),
+            1.3,
+            15.0,
+        ),
+        cfg(
+            "lambert, d = 1.5r, cone by the normal",
+            lambert(),
+            30.0,
+            (45.0, 0.0),
+            1.5,
+            70.0,
+        ),
+        cfg(
+            "phong 100, d = 1.5r, cone by the peak",
+            phong(0.0, 0.8, 100.0),
+            45.0,
+            (0.0, 0.0),
+            1.5,
+            70.0,
+        ),
+        cfg(
+            "rough conductor 0.1, d = 1.3r",
+            conductor(0.1, 0.1),
+            30.0,
+            (50.0, 120.0),
+            1.3,
+            10.0,
         ),
     ]
 }
