@@ -439,6 +439,28 @@ impl<'a> AngularBound<'a> {
         })
     }
 
+    /// The bound of the BSDF's non-delta lobes alone: trials stand for the directions these
+    /// sample, and 1/p_acc is that of a sample from them landing within r. Where only vertices
+    /// reached through a non-delta lobe are gathered (`upg`: a light vertex reached by a
+    /// coating's mirror is not merged), counting the mirror's successes too would make p_acc
+    /// larger than the chance of a merge, and the image dark by their share.
+    pub fn without_delta(mut self) -> Self {
+        let delta = |part: &Part| matches!(part.draw, Draw::Delta(_));
+        if !self.parts.iter().flatten().any(delta) {
+            return self;
+        }
+        let mut cdf = 0.0;
+        for part in self.parts.iter_mut().flatten() {
+            if delta(part) {
+                part.mass = 0.0;
+            }
+            cdf += part.mass;
+            part.cdf = cdf;
+        }
+        self.p_bound = cdf;
+        self
+    }
+
     /// P: the probability that the BSDF samples a direction inside the bound. Zero when no
     /// direction it samples can reach the r-sphere.
     pub fn p_bound(&self) -> f64 {

@@ -126,7 +126,10 @@ impl<'s> UpgMerges<'s> {
             ) else {
                 return;
             };
+            // Only light vertices reached through Q's non-delta lobes are gathered (`gathers`:
+            // `after_surface`), so the tentative rays stand for those lobes alone.
             let Ok(bound) = AngularBound::new(q.position, q.ng, &q_bsdf, hit.position, w.radius)
+                .map(AngularBound::without_delta)
             else {
                 return;
             };
