@@ -181,7 +181,12 @@ impl<'s> Blend<'s> {
         ) else {
             return;
         };
-        let Ok(bound) = AngularBound::new(q.position, q.ng, &q_bsdf, hit.position, w.radius) else {
+        // Light vertices reached through a delta lobe are merged by density estimate (their
+        // predecessor is no `after_surface`), so the mirror's successes are no merge of this
+        // gather: left out of p_acc as `upg` leaves them out.
+        let Ok(bound) = AngularBound::new(q.position, q.ng, &q_bsdf, hit.position, w.radius)
+            .map(AngularBound::without_delta)
+        else {
             return;
         };
         let merge_at_q = Gather::Blend.merge_at(
