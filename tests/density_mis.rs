@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{floor_view, load, options, render_stats, PixelStats};
+use common::{floor_view, load, options, render_stats};
 use std::path::Path;
 use std::process::Command;
 use vmerge::film::exr;
@@ -34,17 +34,6 @@ fn vcm_plus_and_star_pass_the_furnace() {
     }
 }
 
-fn rms_difference(a: &PixelStats, b: &PixelStats) -> f64 {
-    let n = a.mean.len() as f64;
-    let sum: f64 = a
-        .mean
-        .iter()
-        .zip(&b.mean)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum();
-    (sum / n).sqrt()
-}
-
 /// With the radius shrinking (alpha = 0.75) both approach bpt's image: the mean within 1%, and
 /// the RMS difference at least halves from 64 to 1024 iterations (tests/vcm.rs's statistic).
 #[test]
@@ -61,7 +50,7 @@ fn vcm_plus_and_star_converge_to_bpt() {
                 (m - r).abs() < 0.01 * r,
                 "{name} {mode:?}: mean {m}, bpt {r}"
             );
-            let (early, late) = (rms_difference(&short, &bpt), rms_difference(&long, &bpt));
+            let (early, late) = (short.rms_difference(&bpt), long.rms_difference(&bpt));
             assert!(
                 late < 0.5 * early,
                 "{name} {mode:?}: RMS difference {early} -> {late}"

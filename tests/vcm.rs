@@ -43,17 +43,6 @@ fn vcm_without_merging_is_bpt() {
     assert_agree("vcm --no-vm vs bpt", &vcm, &bpt);
 }
 
-fn rms_difference(a: &PixelStats, b: &PixelStats) -> f64 {
-    let n = a.mean.len() as f64;
-    (a.mean
-        .iter()
-        .zip(&b.mean)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f64>()
-        / n)
-        .sqrt()
-}
-
 /// vcm with a shrinking radius (alpha = 0.75) approaches bpt's image: the image mean within 1%
 /// of it, and the RMS difference falls as iterations grow (bias and noise both shrink).
 #[test]
@@ -65,7 +54,7 @@ fn vcm_converges_to_bpt() {
         let long = render_stats(&scene, &floor_view(Technique::Vcm, 32), 1024);
         let (m, r) = (long.image_mean(), bpt.image_mean());
         assert!((m - r).abs() < 0.01 * r, "{name}: vcm mean {m}, bpt {r}");
-        let (early, late) = (rms_difference(&short, &bpt), rms_difference(&long, &bpt));
+        let (early, late) = (short.rms_difference(&bpt), long.rms_difference(&bpt));
         assert!(
             late < 0.5 * early,
             "{name}: RMS difference {early} -> {late}"
@@ -245,7 +234,7 @@ fn vcm_with_per_pixel_radii_converges_to_bpt() {
     let long = render_stats(&scene, &o, 1024);
     let (m, r) = (long.image_mean(), bpt.image_mean());
     assert!((m - r).abs() < 0.01 * r, "vcm mean {m}, bpt {r}");
-    let (early, late) = (rms_difference(&short, &bpt), rms_difference(&long, &bpt));
+    let (early, late) = (short.rms_difference(&bpt), long.rms_difference(&bpt));
     assert!(late < 0.5 * early, "RMS difference {early} -> {late}");
 }
 

@@ -32,17 +32,6 @@ fn vcm_upg_passes_the_furnace() {
     }
 }
 
-fn rms_difference(a: &PixelStats, b: &PixelStats) -> f64 {
-    let n = a.mean.len() as f64;
-    (a.mean
-        .iter()
-        .zip(&b.mean)
-        .map(|(x, y)| (x - y) * (x - y))
-        .sum::<f64>()
-        / n)
-        .sqrt()
-}
-
 /// vcm-upg with a shrinking radius (alpha = 0.75) approaches bpt's image, with tests/vcm.rs's
 /// statistic: the image mean within 1% of it, and the RMS difference falling as iterations grow.
 /// The first radius is 5% of the box, so that merges carry much of the image and the ramp
@@ -58,7 +47,7 @@ fn vcm_upg_converges_to_bpt() {
     let long = render_stats(&scene, &o, 1024);
     let (m, r) = (long.image_mean(), bpt.image_mean());
     assert!((m - r).abs() < 0.01 * r, "vcm-upg mean {m}, bpt {r}");
-    let (early, late) = (rms_difference(&short, &bpt), rms_difference(&long, &bpt));
+    let (early, late) = (short.rms_difference(&bpt), long.rms_difference(&bpt));
     assert!(late < 0.5 * early, "RMS difference {early} -> {late}");
 }
 

@@ -64,6 +64,18 @@ impl PixelStats {
     pub fn image_se(&self) -> f64 {
         self.var_of_mean.iter().sum::<f64>().sqrt() / self.mean.len() as f64
     }
+
+    /// The root mean square of the per-pixel differences of the means: with noise and bias
+    /// both shrinking, a consistent technique's falls towards zero as its iterations grow.
+    pub fn rms_difference(&self, other: &PixelStats) -> f64 {
+        let sum: f64 = self
+            .mean
+            .iter()
+            .zip(&other.mean)
+            .map(|(x, y)| (x - y) * (x - y))
+            .sum();
+        (sum / self.mean.len() as f64).sqrt()
+    }
 }
 
 /// Batches of iterations whose means give each pixel's variance. Path-traced pixels are
