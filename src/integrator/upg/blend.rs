@@ -50,10 +50,10 @@
 //! density-estimate merges would have to share.
 
 use super::super::mis::{Gather, Neighbour, VcmWeights, VmHere};
-use super::super::subpath::{LightVertex, SubPath};
+use super::super::subpath::SubPath;
 use super::super::IterationStats;
-use super::acceptance::{AngularBound, Estimator};
-use super::merge::{carry, Gathered, Tentative, UpgMerges};
+use super::acceptance::Estimator;
+use super::merge::{Gathered, Tentative, UpgMerges};
 use super::{Deferred, UpgCounters};
 use crate::bsdf::Bsdf;
 use crate::color::Rgb;
@@ -81,7 +81,6 @@ impl Ramp {
 
 /// `vcm-upg`'s merges.
 pub struct Blend<'s> {
-    scene: &'s Scene,
     upg: UpgMerges<'s>,
     ramp: Ramp,
 }
@@ -97,8 +96,7 @@ impl<'s> Blend<'s> {
         ramp: Ramp,
     ) -> Self {
         Blend {
-            scene,
-            upg: UpgMerges::new(scene, Gather::UpgLight, estimator, bounds, roulette),
+            upg: UpgMerges::new(scene, Gather::Blend, estimator, bounds, roulette),
             ramp,
         }
     }
@@ -136,7 +134,8 @@ impl<'s> Blend<'s> {
                 });
                 match q {
                     Some(q) if b < 1.0 && (b <= 0.0 || choice.next_f32() >= b) => {
-                        self.gather(w, (state, hit, bsdf), q, tentative, stats);
+                        self.upg
+                            .through_predecessor(w, (state, hit, bsdf), q, tentative, stats);
                     }
                     _ => {
                         let eval = bsdf.eval(lv.wo);
@@ -158,56 +157,6 @@ impl<'s> Blend<'s> {
             }
         });
         density * w.vm_normalization + self.upg.estimate(tentative, stats) * (1.0 / w.light_paths)
-    }
-
-    /// UPG's merge through `q`, the light vertex's predecessor: the explicit connection from `q`
-    /// to the eye vertex (000 eq. 2.67), weighed with VCM's weights on that path, awaiting its
-    /// 1/p_acc in `tentative`.
-    fn gather(
-        &self,
-        w: &VcmWeights,
-        (state, hit, bsdf): (&SubPath<Deferred>, &SurfaceHit, &Bsdf),
-        q: &LightVertex<Deferred>,
-        tentative: &mut Tentative<'s>,
-        stats: &mut IterationStats,
-    ) {
-        let Some(q_bsdf) = q.bsdf(self.scene) else {
-            return;
-        };
-        let Some(link) = self.upg.link(
-            (&q_bsdf, q.position, q.ng),
-            (bsdf, hit.position, hit.ng),
-            stats,
-        ) else {
-            return;
-        };
-        // Light vertices reached through a delta lobe are merged by density estimate (their
-        // predecessor is no `after_surface`), so the mirror's successes are no merge of this
-        // gather: left out of p_acc as `upg` leaves them out.
-        let Ok(bound) = AngularBound::new(q.position, q.ng, &q_bsdf, hit.position, w.radius)
-            .map(AngularBound::without_delta)
-        else {
-            return;
-        };
-        let merge_at_q = Gather::Blend.merge_at(
-            Neighbour::towards_light(q.path_length, q.after_surface),
-            Neighbour::Surface,
-        );
-        let light = carry(
-            w,
-            &link,
-            q.mis_at(w, link.from_eval.rev_pdf_w),
-            (merge_at_q, q.rho),
-        );
-        let weight = w.merge(
-            &light,
-            &state.mis_at(w, link.to_eval.rev_pdf_w),
-            (link.to_eval.pdf_w, link.to_eval.rev_pdf_w),
-            w.vm_factor,
-            state.density,
-        );
-        let roulette = self.upg.roulette_probability(&q_bsdf, q.path_length);
-        tentative.push(bound, q.throughput * link.value * (weight / roulette));
     }
 
     /// Metadata entries: UPG's (000 Table 3.2) and the share of merges UPG made.

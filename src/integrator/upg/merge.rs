@@ -78,7 +78,8 @@ pub struct UpgMerges<'s> {
 }
 
 impl<'s> UpgMerges<'s> {
-    /// `gather` is [`Gather::UpgLight`] or [`Gather::UpgCamera`].
+    /// `gather` is [`Gather::UpgLight`], [`Gather::UpgCamera`] or, for `vcm-upg`'s UPG
+    /// merges, [`Gather::Blend`].
     pub fn new(
         scene: &'s Scene,
         gather: Gather,
@@ -115,46 +116,8 @@ impl<'s> UpgMerges<'s> {
                 && self.keeps(vertices[i - 1].path_length + 1 + state.path_length)
         };
         let mut gather = |i: usize| {
-            let q = &gathered.vertex(w, i - 1);
-            let Some(q_bsdf) = q.bsdf(self.scene) else {
-                return;
-            };
-            let Some(link) = self.link(
-                (&q_bsdf, q.position, q.ng),
-                (bsdf, hit.position, hit.ng),
-                stats,
-            ) else {
-                return;
-            };
-            // Only light vertices reached through Q's non-delta lobes are gathered (`gathers`:
-            // `after_surface`), so the tentative rays stand for those lobes alone.
-            let Ok(bound) = AngularBound::new(q.position, q.ng, &q_bsdf, hit.position, w.radius)
-                .map(AngularBound::without_delta)
-            else {
-                return;
-            };
-            // The light sub-path's quantities as they would be at the eye vertex; Q's own
-            // neighbour towards the light decides whether merging at Q is a technique.
-            let merge_at_q = self
-                .gather
-                .merge_at(Neighbour::surface_if(q.after_surface), Neighbour::Surface);
-            // The merge vertex is the eye vertex, whose density factor the eye sub-path holds.
-            let mut light = carry(
-                w,
-                &link,
-                q.mis_at(w, link.from_eval.rev_pdf_w),
-                (merge_at_q, q.rho),
-            );
-            w.visit(&mut light, state.density.1);
-            let weight = w.merge(
-                &light,
-                &state.mis_at(w, link.to_eval.rev_pdf_w),
-                (link.to_eval.pdf_w, link.to_eval.rev_pdf_w),
-                w.eta(light.d_vcm),
-                state.density,
-            );
-            let roulette = self.roulette_probability(&q_bsdf, q.path_length);
-            tentative.push(bound, q.throughput * link.value * (weight / roulette));
+            let q = gathered.vertex(w, i - 1);
+            self.through_predecessor(w, (state, hit, bsdf), &q, tentative, stats);
         };
         // The eye sub-path's radius: every technique of the path weighs with it.
         gathered.query(w, hit.position, |batch| {
@@ -228,13 +191,66 @@ impl<'s> UpgMerges<'s> {
         self.estimate(tentative, stats)
     }
 
+    /// The merge of a gathered light vertex through Q = `q`, its predecessor (`upg`, and
+    /// `vcm-upg`'s merges made by UPG): Q connected to the eye vertex explicitly (000 eq. 2.67),
+    /// weighed on that path, its contribution awaiting 1/p_acc in `tentative`.
+    pub(super) fn through_predecessor(
+        &self,
+        w: &VcmWeights,
+        (state, hit, bsdf): (&SubPath<Deferred>, &SurfaceHit, &Bsdf),
+        q: &LightVertex<Deferred>,
+        tentative: &mut Tentative<'s>,
+        stats: &mut IterationStats,
+    ) {
+        let Some(q_bsdf) = q.bsdf(self.scene) else {
+            return;
+        };
+        let Some(link) = self.link(
+            (&q_bsdf, q.position, q.ng),
+            (bsdf, hit.position, hit.ng),
+            stats,
+        ) else {
+            return;
+        };
+        // Only light vertices reached through Q's non-delta lobes are gathered (`gathers`:
+        // `after_surface`), so the tentative rays stand for those lobes alone.
+        let Ok(bound) = AngularBound::new(q.position, q.ng, &q_bsdf, hit.position, w.radius)
+            .map(AngularBound::without_delta)
+        else {
+            return;
+        };
+        // The light sub-path's quantities as they would be at the eye vertex; Q's own
+        // neighbour towards the light decides whether merging at Q is a technique.
+        let merge_at_q = self.gather.merge_at(
+            Neighbour::towards_light(q.path_length, q.after_surface),
+            Neighbour::Surface,
+        );
+        // The merge vertex is the eye vertex, whose density factor the eye sub-path holds.
+        let mut light = carry(
+            w,
+            &link,
+            q.mis_at(w, link.from_eval.rev_pdf_w),
+            (merge_at_q, q.rho),
+        );
+        w.visit(&mut light, state.density.1);
+        let weight = w.merge(
+            &light,
+            &state.mis_at(w, link.to_eval.rev_pdf_w),
+            (link.to_eval.pdf_w, link.to_eval.rev_pdf_w),
+            w.eta(light.d_vcm),
+            state.density,
+        );
+        let roulette = self.roulette_probability(&q_bsdf, q.path_length);
+        tentative.push(bound, q.throughput * link.value * (weight / roulette));
+    }
+
     /// Whether a merged path of `segments` lies within the path-length bounds.
     pub(super) fn keeps(&self, segments: u32) -> bool {
         (self.min_length..=self.max_length).contains(&segments)
     }
 
     /// The probability that Russian roulette let a sub-path go on from a vertex.
-    pub(super) fn roulette_probability(&self, bsdf: &Bsdf, path_length: u32) -> f32 {
+    fn roulette_probability(&self, bsdf: &Bsdf, path_length: u32) -> f32 {
         if path_length >= self.roulette {
             bsdf.continuation_probability()
         } else {
@@ -244,7 +260,7 @@ impl<'s> UpgMerges<'s> {
 
     /// The explicit connection of a UPG merge between two vertices (BSDF, position, geometric
     /// normal): both BSDFs, the geometry term and the visibility (000 eq. 2.67).
-    pub(super) fn link(
+    fn link(
         &self,
         (from, from_position, from_ng): (&Bsdf, Vec3, Vec3),
         (to, to_position, to_ng): (&Bsdf, Vec3, Vec3),
@@ -267,7 +283,7 @@ impl<'s> UpgMerges<'s> {
         // `upg` gathers light vertices, which lie on non-delta surfaces only; `upg-camera`
         // gathers at wherever the eye sub-path lands.
         match self.gather {
-            Gather::UpgLight => {
+            Gather::UpgLight | Gather::Blend => {
                 tentative.estimate(&self.estimator, &StoredVerticesOnly(self.scene), stats)
             }
             _ => tentative.estimate(&self.estimator, self.scene, stats),
@@ -278,7 +294,7 @@ impl<'s> UpgMerges<'s> {
 /// The MIS quantities of the sub-path that ends at the first vertex of `c` (`at_from`),
 /// carried across it to the second (001 eqs. (34)-(36)); a merge at the first vertex is a
 /// technique or not as `merge_at_from` says, with density factor `rho` (002 eq. (6)).
-pub(super) fn carry(
+fn carry(
     w: &VcmWeights,
     c: &Connection,
     at_from: VcmVertex,
