@@ -71,6 +71,8 @@ EXAMPLES = {
     "unweighted": ("bpt", True),
     "upg_packet": ("upg", 8),
     "upg_max_trials": ("upg", 500),
+    "blend_near": ("vcm-upg", 2.0),
+    "blend_far": ("vcm-upg", 8.0),
     "sampler": ("pt", "independent"),
     "no_shading_normals": ("pt", True),
     "density_mis": ("vcm", "vcm+"),
