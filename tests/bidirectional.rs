@@ -14,12 +14,7 @@ fn lt_and_bpt_pass_the_furnace() {
     let scene = load("furnace");
     for (technique, iterations) in [(Technique::Lt, 256), (Technique::Bpt, 256)] {
         let stats = render_stats(&scene, &options(technique, 64), iterations);
-        let (mean, se) = (stats.image_mean(), stats.image_se());
-        assert!(se < 0.001, "{technique:?}: standard error {se}");
-        assert!(
-            (mean - 1.0).abs() < 0.005,
-            "{technique:?}: furnace mean {mean} (se {se})"
-        );
+        stats.assert_furnace(&format!("{technique:?}"), 0.005, 0.001);
         assert_eq!(stats.dropped, 0);
     }
 }

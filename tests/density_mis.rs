@@ -25,12 +25,7 @@ fn vcm_plus_and_star_pass_the_furnace() {
         let mut o = with_density(options(Technique::Vcm, 64), mode);
         o.radius = Some(0.03);
         let stats = render_stats(&scene, &o, 256);
-        let (mean, se) = (stats.image_mean(), stats.image_se());
-        assert!(se < 0.002, "{mode:?}: standard error {se}");
-        assert!(
-            (mean - 1.0).abs() < 0.01,
-            "{mode:?}: furnace mean {mean} (se {se})"
-        );
+        stats.assert_furnace(&format!("{mode:?}"), 0.01, 0.002);
     }
 }
 

@@ -93,11 +93,6 @@ fn sobol_passes_the_furnace() {
     ] {
         let o = with(SamplerKind::Sobol, options(technique, 32));
         let stats = render_stats_by_seed(&scene, &o, iterations);
-        let (mean, se) = (stats.image_mean(), stats.image_se());
-        assert!(se < 0.001, "{technique}: standard error {se}");
-        assert!(
-            (mean - 1.0).abs() < 0.005,
-            "{technique}: furnace mean {mean} (se {se})"
-        );
+        stats.assert_furnace(&format!("{technique}"), 0.005, 0.001);
     }
 }

@@ -302,12 +302,7 @@ texture = "half.pfm"
     let scene = scene::load(&path, &load_options()).unwrap();
     for technique in [Technique::Pt, Technique::Bpt, Technique::Upg] {
         let stats = render_stats(&scene, &options(technique, 32), 128);
-        let (mean, se) = (stats.image_mean(), stats.image_se());
-        assert!(se < 0.002, "{technique:?}: standard error {se}");
-        assert!(
-            (mean - 1.0).abs() < 0.005,
-            "{technique:?}: furnace mean {mean} (se {se})"
-        );
+        stats.assert_furnace(&format!("{technique:?}"), 0.005, 0.002);
     }
 }
 

@@ -25,12 +25,7 @@ fn upg_passes_the_furnace() {
             let mut o = options(technique, 48);
             o.radius = Some(radius);
             let stats = render_stats(&scene, &o, 128);
-            let (mean, se) = (stats.image_mean(), stats.image_se());
-            assert!(se < 0.001, "{technique:?} r {radius}: standard error {se}");
-            assert!(
-                (mean - 1.0).abs() < 0.005,
-                "{technique:?} r {radius}: furnace mean {mean} (se {se})"
-            );
+            stats.assert_furnace(&format!("{technique:?} r {radius}"), 0.005, 0.001);
             assert_eq!(stats.dropped, 0);
         }
     }
@@ -69,12 +64,7 @@ fn upg_with_density_mis_passes_the_furnace() {
             let mut o = with_density(options(technique, 48), mode);
             o.radius = Some(0.05);
             let stats = render_stats(&scene, &o, 128);
-            let (mean, se) = (stats.image_mean(), stats.image_se());
-            assert!(se < 0.001, "{technique:?} {mode:?}: standard error {se}");
-            assert!(
-                (mean - 1.0).abs() < 0.005,
-                "{technique:?} {mode:?}: furnace mean {mean} (se {se})"
-            );
+            stats.assert_furnace(&format!("{technique:?} {mode:?}"), 0.005, 0.001);
             assert_eq!(stats.dropped, 0);
         }
     }

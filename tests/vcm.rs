@@ -23,12 +23,7 @@ fn assert_merging_furnace(radius: impl Fn(&mut RenderOptions)) {
         let mut o = options(technique, 64);
         radius(&mut o);
         let stats = render_stats(&scene, &o, 256);
-        let (mean, se) = (stats.image_mean(), stats.image_se());
-        assert!(se < 0.002, "{technique:?}: standard error {se}");
-        assert!(
-            (mean - 1.0).abs() < 0.01,
-            "{technique:?}: furnace mean {mean} (se {se})"
-        );
+        stats.assert_furnace(&format!("{technique:?}"), 0.01, 0.002);
     }
 }
 
@@ -196,12 +191,7 @@ fn per_pixel_radius_with_upg_and_the_density_map_passes_the_furnace() {
         o.radius_pixels = Some(2.0);
         o.density_mis = density;
         let stats = render_stats(&scene, &o, 128);
-        let (mean, se) = (stats.image_mean(), stats.image_se());
-        assert!(se < 0.002, "{technique:?} {density:?}: standard error {se}");
-        assert!(
-            (mean - 1.0).abs() < 0.01,
-            "{technique:?} {density:?}: furnace mean {mean} (se {se})"
-        );
+        stats.assert_furnace(&format!("{technique:?} {density:?}"), 0.01, 0.002);
     }
 }
 

@@ -22,12 +22,7 @@ fn vcm_upg_passes_the_furnace() {
         let mut o = options(Technique::VcmUpg, 48);
         o.radius = Some(radius);
         let stats = render_stats(&scene, &o, 128);
-        let (mean, se) = (stats.image_mean(), stats.image_se());
-        assert!(se < 0.002, "r {radius}: standard error {se}");
-        assert!(
-            (mean - 1.0).abs() < 0.01,
-            "r {radius}: furnace mean {mean} (se {se})"
-        );
+        stats.assert_furnace(&format!("r {radius}"), 0.01, 0.002);
         assert_eq!(stats.dropped, 0);
     }
 }

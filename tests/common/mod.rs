@@ -65,6 +65,18 @@ impl PixelStats {
         self.var_of_mean.iter().sum::<f64>().sqrt() / self.mean.len() as f64
     }
 
+    /// Asserts a furnace's image, radiance 1 everywhere: the mean within `tolerance` of 1,
+    /// measured with a standard error below `max_se` so that the bound is tight against the
+    /// noise.
+    pub fn assert_furnace(&self, label: &str, tolerance: f64, max_se: f64) {
+        let (mean, se) = (self.image_mean(), self.image_se());
+        assert!(se < max_se, "{label}: standard error {se}");
+        assert!(
+            (mean - 1.0).abs() < tolerance,
+            "{label}: furnace mean {mean} (se {se})"
+        );
+    }
+
     /// The root mean square of the per-pixel differences of the means: with noise and bias
     /// both shrinking, a consistent technique's falls towards zero as its iterations grow.
     pub fn rms_difference(&self, other: &PixelStats) -> f64 {
