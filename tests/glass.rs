@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{assert_agree, assert_means_agree, options, render_stats, PixelStats};
+use common::{assert_agree, assert_means_agree, load_file, options, render_stats, PixelStats};
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use std::path::{Path, PathBuf};
@@ -16,9 +16,7 @@ use vmerge::color::Rgb;
 use vmerge::options::Technique;
 use vmerge::options::{RenderOptions, SamplerKind};
 use vmerge::sampling::Rng;
-use vmerge::scene::{
-    self, Camera, CameraDesc, FovAxis, LoadOptions, RenderDefaults, Scene, SceneParts,
-};
+use vmerge::scene::{Camera, CameraDesc, FovAxis, RenderDefaults, Scene, SceneParts};
 
 const IOR: f64 = 1.5;
 const MAX_PATH_LENGTH: u32 = 10;
@@ -328,12 +326,7 @@ fn bulbs_case() -> Option<Scene> {
         eprintln!("skipping: {} is absent", path.display());
         return None;
     }
-    let options = LoadOptions {
-        accel: AccelKind::default_kind(),
-        lenient: false,
-        shading_normals: true,
-    };
-    Some(scene::load(&path, &options).unwrap_or_else(|e| panic!("{e}")))
+    Some(load_file(&path))
 }
 
 /// Mean and standard error of the pixels in rows `rows` of a `width`-wide image.

@@ -8,15 +8,16 @@
 mod common;
 
 use common::chi_square::{chi_square, direction};
-use common::{assert_agree, assert_means_agree, load, options, render_stats, PixelStats};
+use common::{
+    assert_agree, assert_means_agree, load, load_file, options, render_stats, PixelStats,
+};
 use glam::{DVec3, Vec3};
 use std::f64::consts::PI;
-use vmerge::accel::AccelKind;
 use vmerge::bsdf::{Bsdf, MaterialKind, Params, TransportMode};
 use vmerge::color::Rgb;
 use vmerge::options::{RenderOptions, Technique};
 use vmerge::sampling::{Rng, Stream};
-use vmerge::scene::{self, LoadOptions, Scene};
+use vmerge::scene::Scene;
 use vmerge::texture::{write_pfm, Texture};
 
 fn kind(type_name: &str, params: Params) -> MaterialKind {
@@ -507,12 +508,7 @@ fn load_scene(name: &str, text: &str) -> Scene {
     std::fs::create_dir_all(&dir).unwrap();
     let path = dir.join("scene.toml");
     std::fs::write(&path, text).unwrap();
-    let options = LoadOptions {
-        accel: AccelKind::default_kind(),
-        lenient: false,
-        shading_normals: true,
-    };
-    let scene = scene::load(&path, &options).unwrap_or_else(|e| panic!("{e}"));
+    let scene = load_file(&path);
     std::fs::remove_dir_all(&dir).unwrap();
     scene
 }

@@ -4,28 +4,18 @@
 
 mod common;
 
-use common::{assert_agree, options, render_stats, PixelStats};
+use common::{assert_agree, load_file, options, render_stats, PixelStats};
 use glam::Vec3;
 use std::f64::consts::PI;
 use std::path::Path;
-use vmerge::accel::AccelKind;
 use vmerge::light::{Light, SpotCone};
 use vmerge::options::{RenderOptions, Technique};
-use vmerge::scene::{self, Camera, LoadOptions, Scene};
-
-fn load_file(path: &Path) -> Scene {
-    let options = LoadOptions {
-        accel: AccelKind::default_kind(),
-        lenient: false,
-        shading_normals: true,
-    };
-    scene::load(path, &options).unwrap_or_else(|e| panic!("{e}"))
-}
+use vmerge::scene::{Camera, Scene};
 
 /// A scene of tests/fixtures/lights.
 fn fixture(name: &str) -> Scene {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/lights");
-    load_file(&dir.join(name).join("scene.toml"))
+    load_file(dir.join(name).join("scene.toml"))
 }
 
 /// The spot light of the plane test, in the scene file's terms.

@@ -9,15 +9,15 @@
 mod common;
 
 use common::chi_square::{chi_square, direction};
+use common::load_file;
 use glam::Vec3;
 use std::f64::consts::PI;
-use vmerge::accel::AccelKind;
 use vmerge::bsdf::microfacet::Roughness;
 use vmerge::bsdf::{Bsdf, MaterialKind, TransportMode};
 use vmerge::color::Rgb;
 use vmerge::options::Technique;
 use vmerge::sampling::{Rng, Stream};
-use vmerge::scene::{self, LoadOptions, Scene};
+use vmerge::scene::Scene;
 
 /// A unit direction at polar angle `theta_deg` in the xz plane turned by 30 degrees of
 /// azimuth (so anisotropic lobes are seen off their axes).
@@ -275,12 +275,7 @@ fn furnace_scene_in(
         position.x, position.y, position.z, look_at.x, look_at.y, look_at.z
     );
     std::fs::write(&path, text).unwrap();
-    let options = LoadOptions {
-        accel: AccelKind::default_kind(),
-        lenient: false,
-        shading_normals: true,
-    };
-    let scene = scene::load(&path, &options).unwrap_or_else(|e| panic!("{e}"));
+    let scene = load_file(&path);
     (dir, scene)
 }
 

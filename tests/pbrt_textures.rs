@@ -6,13 +6,16 @@
 //! The TOML format's roughness textures of one axis each do the same, and a material's
 //! textures stay its own after an emitting mix (which adds three materials at once).
 
+mod common;
+
+use common::load_file;
 use glam::{Vec2, Vec3};
 use std::path::Path;
-use vmerge::accel::{AccelKind, Ray};
+use vmerge::accel::Ray;
 use vmerge::bsdf::{Bsdf, Bxdf, MaterialKind, TransportMode};
 use vmerge::color::Rgb;
 use vmerge::sampling::Rng;
-use vmerge::scene::{self, LoadOptions, Scene};
+use vmerge::scene::Scene;
 use vmerge::texture::{write_pfm, Texture};
 
 /// The centres of the left and right halves of an image whose left half holds one value and
@@ -48,12 +51,7 @@ Shape "trianglemesh" "integer indices" [0 1 2 0 2 3]
     );
     let path = dir.join("scene.pbrt");
     std::fs::write(&path, text).unwrap();
-    let options = LoadOptions {
-        accel: AccelKind::default_kind(),
-        lenient: false,
-        shading_normals: true,
-    };
-    scene::load(&path, &options).unwrap_or_else(|e| panic!("{e}"))
+    load_file(&path)
 }
 
 /// The quad's material as the BSDF sees it at `uv`: its kind with the textures there.
@@ -287,12 +285,7 @@ fn toml_material(dir: &Path, keys: &str) -> (Scene, u32) {
     );
     let path = dir.join("scene.toml");
     std::fs::write(&path, text).unwrap();
-    let options = LoadOptions {
-        accel: AccelKind::default_kind(),
-        lenient: false,
-        shading_normals: true,
-    };
-    let scene = scene::load(&path, &options).unwrap_or_else(|e| panic!("{e}"));
+    let scene = load_file(&path);
     let m = scene.materials.iter().position(|m| m.name == "m").unwrap() as u32;
     (scene, m)
 }

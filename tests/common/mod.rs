@@ -15,7 +15,15 @@ use vmerge::render::create_integrator;
 use vmerge::scene::{self, Camera, LoadOptions, Scene};
 
 pub fn load(name: &str) -> Scene {
-    let path = format!("{}/scenes/{name}/scene.toml", env!("CARGO_MANIFEST_DIR"));
+    load_file(format!(
+        "{}/scenes/{name}/scene.toml",
+        env!("CARGO_MANIFEST_DIR")
+    ))
+}
+
+/// The scene at `path`, loaded strictly (no `--lenient`) with shading normals, on the default
+/// ray-query backend.
+pub fn load_file(path: impl AsRef<std::path::Path>) -> Scene {
     let options = LoadOptions {
         accel: AccelKind::default_kind(),
         lenient: false,
