@@ -89,6 +89,12 @@ impl Technique {
         self.shrinks_radius() || self == Technique::VcmUpg
     }
 
+    /// Takes a radius per pixel (001 sec. 6.1): every merging technique but `vcm-upg`, whose
+    /// merges read the light vertices' weights as they were traced, at one radius for all.
+    pub fn takes_pixel_radius(self) -> bool {
+        self.merges() && self != Technique::VcmUpg
+    }
+
     /// Estimates acceptance probabilities with tentative rays (000 eq. 2.65).
     pub fn traces_tentative_rays(self) -> bool {
         self.is_upg() || self == Technique::VcmUpg
@@ -675,7 +681,7 @@ pub static OPTIONS: &[OptionSpec] = &[
             choices: None,
         },
         help: "merge radius per pixel: this many pixel footprints at the first non-specular eye vertex, shrinking like --radius (001 sec. 6.1)",
-        takes: Technique::merges,
+        takes: Technique::takes_pixel_radius,
         write: |o| o.radius_pixels.map(|k| k.to_string()),
         parse: |o, s| {
             o.radius_pixels = Some(number(s)?);
@@ -1367,7 +1373,7 @@ mod tests {
     }
 
     /// A per-pixel radius is a positive footprint and is not one radius twice; every technique
-    /// that merges takes it, 002's weights too, and one-stage merging refuses it.
+    /// that merges but `vcm-upg` takes it, 002's weights too, and one-stage merging refuses it.
     #[test]
     fn radius_pixels_has_a_range_and_excludes_global_radii() {
         let vcm = |radius_pixels, radius, density_mis| RenderOptions {
@@ -1424,7 +1430,7 @@ mod tests {
                     ..
                 })
             );
-            assert_eq!(refused, !technique.merges(), "{technique}");
+            assert_eq!(refused, !technique.takes_pixel_radius(), "{technique}");
         }
     }
 
