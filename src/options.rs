@@ -25,11 +25,12 @@ pub enum Technique {
     Vcm,
     Upg,
     UpgCamera,
+    UpgHybrid,
     VcmUpg,
 }
 
 impl Technique {
-    pub const ALL: [Technique; 9] = [
+    pub const ALL: [Technique; 10] = [
         Technique::Pt,
         Technique::Lt,
         Technique::Bpt,
@@ -38,6 +39,7 @@ impl Technique {
         Technique::Vcm,
         Technique::Upg,
         Technique::UpgCamera,
+        Technique::UpgHybrid,
         Technique::VcmUpg,
     ];
 
@@ -51,6 +53,7 @@ impl Technique {
             Technique::Vcm => "vcm",
             Technique::Upg => "upg",
             Technique::UpgCamera => "upg-camera",
+            Technique::UpgHybrid => "upg-hybrid",
             Technique::VcmUpg => "vcm-upg",
         }
     }
@@ -65,6 +68,9 @@ impl Technique {
             Technique::Vcm => "vertex connection and merging",
             Technique::Upg => "unbiased photon gathering, merging from the light side",
             Technique::UpgCamera => "unbiased photon gathering, merging from the camera side",
+            Technique::UpgHybrid => {
+                "unbiased photon gathering, each merge from the side its glossiness picks"
+            }
             Technique::VcmUpg => {
                 "vcm, its merges near corners and edges made by unbiased photon gathering"
             }
@@ -102,7 +108,10 @@ impl Technique {
 
     /// Unbiased photon gathering: merges at a fixed radius (000 sec. 2.4.6).
     pub fn is_upg(self) -> bool {
-        matches!(self, Technique::Upg | Technique::UpgCamera)
+        matches!(
+            self,
+            Technique::Upg | Technique::UpgCamera | Technique::UpgHybrid
+        )
     }
 
     /// Merges light vertices at all.
@@ -251,6 +260,10 @@ pub struct RenderOptions {
     /// merge, and from which VCM's density estimate makes every one; smooth between.
     pub blend_near: f32,
     pub blend_far: f32,
+    /// `upg-hybrid`: the roughness (an alpha: 0 smooth, 1 diffuse) from which a merge vertex's
+    /// neighbour towards the light sends the tentative rays (`upg`'s gather); merges whose
+    /// neighbour is smoother are gathered from the camera side (`upg-camera`'s).
+    pub hybrid_roughness: f32,
     /// `vcm`, `bpm`, `upg`, `upg-camera`: 002's density-map heuristic instead of VCM's.
     pub density_mis: Option<DensityMis>,
     /// Iterations whose light vertices fill the density map; after them it is fixed (002
@@ -292,6 +305,7 @@ impl RenderOptions {
         upg_max_trials: 10_000,
         blend_near: 4.0,
         blend_far: 12.0,
+        hybrid_roughness: 0.2,
         density_mis: None,
         density_map_iterations: 50,
         no_shading_normals: false,
@@ -920,6 +934,26 @@ pub static OPTIONS: &[OptionSpec] = &[
             _ => None,
         },
         expected: "a finite number of radii above blend_near",
+    },
+    OptionSpec {
+        name: "hybrid_roughness",
+        short: None,
+        form: Form::Value {
+            value_name: "ALPHA",
+            choices: None,
+        },
+        help: "a merge is gathered from the light side where the vertex before it towards the light is at least this rough (an alpha: 0 smooth, 1 diffuse), else from the camera side",
+        takes: |t| t == Technique::UpgHybrid,
+        write: |o| Some(o.hybrid_roughness.to_string()),
+        parse: |o, s| {
+            o.hybrid_roughness = number(s)?;
+            Ok(())
+        },
+        invalid: |o| {
+            (!(o.hybrid_roughness.is_finite() && o.hybrid_roughness >= 0.0))
+                .then(|| o.hybrid_roughness.to_string())
+        },
+        expected: "a finite roughness >= 0",
     },
     OptionSpec {
         name: "sampler",

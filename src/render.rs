@@ -80,6 +80,7 @@ pub fn create_integrator<'a>(ctx: RenderContext<'a>) -> Box<dyn Integrator + 'a>
         | Technique::Vcm
         | Technique::Upg
         | Technique::UpgCamera
+        | Technique::UpgHybrid
         | Technique::VcmUpg => Box::new(VertexCm::new(ctx)),
     }
 }

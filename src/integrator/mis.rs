@@ -6,8 +6,8 @@
 //!   used by `bpt.rs`. They turn the power-heuristic weight of 000 eq. (2.47) into O(1) work per
 //!   connection.
 //! - [`VcmVertex`] and [`VcmWeights`]: SmallVCM's d^VCM, d^VC, d^VM of 001 eqs. (31)-(47), used
-//!   by `vcm.rs` for `vcm`, `bpm`, `ppm`, `lt`, `upg` and `upg-camera` (UPG with the clamped
-//!   acceptance of 000 eqs. (2.80)-(2.82)), with 002's density factors where asked.
+//!   by `vcm.rs` for `vcm`, `bpm`, `ppm`, `lt`, `upg`, `upg-camera` and `upg-hybrid` (UPG with
+//!   the clamped acceptance of 000 eqs. (2.80)-(2.82)), with 002's density factors where asked.
 //!
 //! Every quantity is stored "with the power already applied": `mis(x) = x^beta`, applied to
 //! each factor, so products and the ratio sums stay what 000 eq. (2.48) writes.
@@ -209,6 +209,17 @@ pub enum Gather {
     UpgCamera,
     /// `vcm-upg`: density estimation or `upg`'s gather, chosen per merge (`upg/blend.rs`).
     Blend,
+    /// `upg-hybrid`: `upg`'s gather where the merge vertex's neighbour towards the light is a
+    /// rough surface vertex, `upg-camera`'s elsewhere (`upg/hybrid.rs`).
+    Hybrid,
+}
+
+/// The side whose sub-path sends the tentative rays of a merge, whose area pdf of the merge
+/// vertex its clamped eta takes (000 eqs. 2.81-2.82).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Side {
+    Light,
+    Camera,
 }
 
 /// What lies next to a vertex along the path, on one side.
@@ -216,6 +227,10 @@ pub enum Gather {
 pub enum Neighbour {
     /// A non-delta surface vertex: tentative rays can leave from it.
     Surface,
+    /// A non-delta surface vertex smoother than `upg-hybrid`'s threshold: tentative rays could
+    /// leave from it, but that technique gathers from the other side of its neighbours. Every
+    /// other technique takes it as [`Neighbour::Surface`].
+    Glossy,
     /// The light point: a light sub-path's origin, or what light sampling and a light hit
     /// reach.
     Light,
@@ -231,6 +246,15 @@ impl Neighbour {
             Neighbour::Surface
         } else {
             Neighbour::Other
+        }
+    }
+
+    /// A surface vertex as `upg-hybrid`'s rule classes it: [`Neighbour::Glossy`] when
+    /// `glossy`, else unchanged.
+    pub fn glossy_if(self, glossy: bool) -> Self {
+        match self {
+            Neighbour::Surface if glossy => Neighbour::Glossy,
+            other => other,
         }
     }
 
@@ -263,6 +287,8 @@ impl Gather {
     /// `vcm-upg` merges everywhere but next to the light point: those merges neither tentative
     /// rays can make nor a density estimate without its bias, and light sampling makes every
     /// path they would.
+    /// `upg-hybrid` gathers each merge from one side, [`Self::side`]: a function of the path,
+    /// so both sub-paths decide alike, deferring where the neighbour is not traced yet.
     pub fn merge_at(self, light_side: Neighbour, eye_side: Neighbour) -> VmHere {
         let neighbour = match self {
             Gather::Density => return VmHere::Valid,
@@ -272,20 +298,39 @@ impl Gather {
                 return match light_side {
                     Neighbour::Light => VmHere::Invalid,
                     Neighbour::Unknown => VmHere::Deferred,
-                    Neighbour::Surface | Neighbour::Other => VmHere::Valid,
+                    Neighbour::Surface | Neighbour::Glossy | Neighbour::Other => VmHere::Valid,
                 }
             }
+            Gather::Hybrid => match light_side {
+                Neighbour::Unknown => return VmHere::Deferred,
+                _ => match self.side(light_side) {
+                    Side::Light => light_side,
+                    Side::Camera => eye_side,
+                },
+            },
         };
         match neighbour {
-            Neighbour::Surface => VmHere::Valid,
+            Neighbour::Surface | Neighbour::Glossy => VmHere::Valid,
             Neighbour::Light | Neighbour::Other => VmHere::Invalid,
             Neighbour::Unknown => VmHere::Deferred,
         }
     }
 
+    /// The side that gathers a merge whose vertex has `light_side` next to it towards the
+    /// light (known). `upg-hybrid` gathers from the light side where that neighbour is a rough
+    /// surface vertex, and from the camera side where it is glossy, delta or the light point,
+    /// from which `upg` could not gather at all.
+    pub fn side(self, light_side: Neighbour) -> Side {
+        match self {
+            Gather::UpgCamera => Side::Camera,
+            Gather::Hybrid if light_side != Neighbour::Surface => Side::Camera,
+            _ => Side::Light,
+        }
+    }
+
     /// Whether the techniques' weights are UPG's clamped ones (000 eqs. 2.80-2.82).
     pub fn clamps(self) -> bool {
-        matches!(self, Gather::UpgLight | Gather::UpgCamera)
+        matches!(self, Gather::UpgLight | Gather::UpgCamera | Gather::Hybrid)
     }
 }
 

@@ -184,6 +184,8 @@ pub struct LightVertex<P> {
     /// The previous vertex of the sub-path is a non-delta surface vertex, stored just before
     /// this one.
     pub after_surface: bool,
+    /// That previous vertex is glossy by `upg-hybrid`'s rule (false for other techniques).
+    pub after_glossy: bool,
 }
 
 /// What a density-estimate merge reads of a light vertex: a copy, half the size, stored in the
@@ -251,6 +253,8 @@ pub struct SubPath<P> {
     pub specular: bool,
     /// The vertex the ray left from is a non-delta surface vertex.
     pub prev_surface: bool,
+    /// That vertex is glossy by `upg-hybrid`'s rule (false for other techniques).
+    pub prev_glossy: bool,
     pub mis: VcmVertex,
     /// The pending MIS terms: a UPG merge at the previous vertex gathered from the other side
     /// (`upg` on eye sub-paths, `upg-camera` on light sub-paths).
@@ -267,14 +271,16 @@ impl<P: PendingMis> SubPath<P> {
     }
 }
 
-/// The last eye vertex, kept for `upg-camera`'s merges at the next one.
+/// The last eye vertex, kept for the merges gathered from the camera side at the next one.
 #[derive(Clone)]
-pub struct EyeVertex<'b> {
+pub struct EyeVertex<'b, P> {
     pub hit: SurfaceHit,
     pub bsdf: Bsdf<'b>,
-    /// Throughput and MIS quantities on arrival, before scattering on.
+    /// Throughput and MIS quantities on arrival, before scattering on, with the pending terms
+    /// that await the vertex's reverse pdf.
     pub throughput: Rgb,
     pub mis: VcmVertex,
+    pub pending: P,
     /// The density factor rho of a merge there and its 1 / k (002; 1 and 0 without the
     /// density map).
     pub density: (f32, f32),

@@ -2,8 +2,8 @@
 //! tracing (`lt`), bidirectional photon mapping (`bpm`, VM only: 001 sec. 5.6) and progressive
 //! photon mapping (`ppm`, one merge at the first non-specular eye vertex). With `--no-vm` it is
 //! BPT (001 sec. 5.5, eta_VCM = 0), which `bpt.rs` implements separately as its cross-check.
-//! Unbiased photon gathering (`upg`, `upg-camera`) is the same family with another merge,
-//! made in `upg/merge.rs`.
+//! Unbiased photon gathering (`upg`, `upg-camera`, `upg-hybrid`) is the same family with another
+//! merge, made in `upg/merge.rs`.
 //!
 //! The structure follows SmallVCM's VertexCM, read top to bottom:
 //! 1. the light pass ([`VertexCm::trace_light_path`]): one light sub-path per pixel (n_light =
@@ -26,11 +26,12 @@
 use super::connection::{Connection, LightSample};
 use super::density::DensityMap;
 use super::mis::{
-    ConnectionPdfs, Gather, Neighbour, Power, VcmVertex, VcmWeights, VmHere, NO_DENSITY,
+    ConnectionPdfs, Gather, Neighbour, Power, Side, VcmVertex, VcmWeights, VmHere, NO_DENSITY,
 };
 use super::subpath::{self, EyeVertex, MergeVertex, MisStep, PendingMis};
 use super::upg::acceptance::{Estimator, PacketWidth};
 use super::upg::blend::{Blend, Ramp};
+use super::upg::hybrid::{self, Rule};
 use super::upg::merge::{Gathered, Reweigh, Tentative, UpgMerges};
 use super::upg::{Deferred, UpgCounters};
 use super::{Counters, Integrator, IterationStats, RenderContext};
@@ -70,6 +71,8 @@ struct Modes {
     light_trace: bool,
     /// How a merge is made.
     gather: Gather,
+    /// `upg-hybrid`'s rule of which surfaces are glossy.
+    rule: Option<Rule>,
 }
 
 impl Modes {
@@ -80,6 +83,7 @@ impl Modes {
         let gather = match o.technique {
             Technique::Upg => Gather::UpgLight,
             Technique::UpgCamera => Gather::UpgCamera,
+            Technique::UpgHybrid => Gather::Hybrid,
             Technique::VcmUpg => Gather::Blend,
             _ => Gather::Density,
         };
@@ -89,7 +93,15 @@ impl Modes {
             ppm,
             light_trace,
             gather,
+            rule: (gather == Gather::Hybrid).then_some(Rule {
+                threshold: o.hybrid_roughness,
+            }),
         }
+    }
+
+    /// Whether a surface with this BSDF is glossy by `upg-hybrid`'s rule (never without it).
+    fn is_glossy(&self, bsdf: &Bsdf) -> bool {
+        self.rule.is_some_and(|rule| rule.is_glossy(bsdf))
     }
 
     /// Where the light sub-paths of infinite lights start: where no eye vertex connects to
@@ -107,7 +119,8 @@ impl Modes {
     /// along the sub-path is known, the one on the other side is not traced yet.
     fn merge_leaving(&self, light_side: bool, state: &SubPath) -> VmHere {
         if light_side {
-            let known = Neighbour::towards_light(state.path_length, state.prev_surface);
+            let known = Neighbour::towards_light(state.path_length, state.prev_surface)
+                .glossy_if(state.prev_glossy);
             self.gather.merge_at(known, Neighbour::Unknown)
         } else {
             let known = Neighbour::surface_if(state.prev_surface);
@@ -229,10 +242,13 @@ impl<'a> VertexCm<'a> {
             max_trials: o.upg_max_trials,
         };
         let bounds = [o.min_path_length, ctx.max_path_length()];
-        let upg_merges = modes
-            .gather
-            .clamps()
-            .then(|| UpgMerges::new(ctx.scene, modes.gather, estimator, bounds, o.roulette));
+        let upg_merges = modes.gather.clamps().then(|| {
+            let merges = UpgMerges::new(ctx.scene, modes.gather, estimator, bounds, o.roulette);
+            match modes.rule {
+                Some(rule) => merges.with_rule(rule),
+                None => merges,
+            }
+        });
         let blend = (modes.gather == Gather::Blend).then(|| {
             let ramp = Ramp {
                 near: o.blend_near,
@@ -429,6 +445,7 @@ impl<'a> VertexCm<'a> {
             finite_light: light.is_finite(),
             specular: false,
             prev_surface: false,
+            prev_glossy: false,
             mis: VcmVertex::default(),
             pending: Deferred::NONE,
             density: NO_DENSITY,
@@ -486,6 +503,14 @@ impl<'a> VertexCm<'a> {
         if s.delta && self.modes.gather == Gather::Blend {
             state.mis = state.mis_at(w, s.rev_pdf_w);
         }
+        // `upg-hybrid`'s eye sub-path: a vertex left through a delta lobe sends no tentative
+        // rays, so the deferred merge before it is the camera side's; a merge here may be too,
+        // with the pdf of this vertex known now, where the vertex before is a surface vertex.
+        let hybrid_eye = !light_side && self.modes.gather == Gather::Hybrid;
+        let own = if state.prev_surface { state.mis.d_vcm } else { 0.0 };
+        if s.delta && hybrid_eye {
+            state.mis = state.pending.settle_own(w, state.mis);
+        }
         let step = MisStep::Leave {
             cos_out,
             pdf_w: s.pdf_w,
@@ -500,7 +525,11 @@ impl<'a> VertexCm<'a> {
             &mut state.density,
             || None,
         );
+        if hybrid_eye && !s.delta {
+            state.pending = state.pending.with_own(own);
+        }
         state.prev_surface = !s.delta;
+        state.prev_glossy = !s.delta && self.modes.is_glossy(bsdf);
         if !s.delta {
             state.specular = false;
         }
@@ -583,6 +612,7 @@ impl<'a> VertexCm<'a> {
                         pending: state.pending,
                         rho: state.density.0,
                         after_surface: state.prev_surface,
+                        after_glossy: state.prev_glossy,
                     });
                 }
                 if self.modes.vc || self.modes.light_trace {
@@ -698,7 +728,8 @@ impl<'a> VertexCm<'a> {
             };
             // Towards the eye lies the camera, which tentative rays cannot leave from.
             let here = self.modes.gather.merge_at(
-                Neighbour::towards_light(state.path_length, state.prev_surface),
+                Neighbour::towards_light(state.path_length, state.prev_surface)
+                    .glossy_if(state.prev_glossy),
                 Neighbour::Other,
             );
             let eta = w.eta_if(here == VmHere::Valid, state.mis.d_vcm) * state.density.0;
@@ -746,9 +777,15 @@ impl<'a> VertexCm<'a> {
             };
         }
         let pick = lights.pick_pdf(index);
+        // `upg-hybrid` gathers the merge before the light point from the camera side.
+        let mis = if self.modes.gather == Gather::Hybrid {
+            state.pending.settle_own(w, state.mis)
+        } else {
+            state.mis
+        };
         received.radiance
             * w.hit_light(
-                &state.mis,
+                &mis,
                 received.direct_pdf_a * pick,
                 received.emission_pdf_w * pick,
             )
@@ -810,29 +847,25 @@ impl<'a> VertexCm<'a> {
         // Merging at either end: each end's neighbour across the connection is a non-delta
         // surface vertex. The gathering side's pdf of the merge vertex is the end's own sub-path
         // (its d^VCM) or, when the other side gathers, the other end's across the connection.
+        // Each end's neighbour towards the light decides its side under `upg-hybrid`'s rule.
         let gather = self.modes.gather;
-        let light_here = gather.merge_at(
-            Neighbour::towards_light(lv.path_length, lv.after_surface),
-            Neighbour::Surface,
-        );
-        let eye_here = gather.merge_at(
-            Neighbour::Surface,
-            Neighbour::surface_if(state.prev_surface),
-        );
+        let light_behind = Neighbour::towards_light(lv.path_length, lv.after_surface)
+            .glossy_if(lv.after_glossy);
+        let eye_behind = Neighbour::Surface.glossy_if(self.modes.is_glossy(&light_bsdf));
+        let light_here = gather.merge_at(light_behind, Neighbour::Surface);
+        let eye_here = gather.merge_at(eye_behind, Neighbour::surface_if(state.prev_surface));
         let light_eta = w.eta_if(
             light_here == VmHere::Valid,
-            if gather == Gather::UpgCamera {
-                w.mis(1.0 / p.light_pdf_a)
-            } else {
-                lv.mis.d_vcm
+            match gather.side(light_behind) {
+                Side::Camera => w.mis(1.0 / p.light_pdf_a),
+                Side::Light => lv.mis.d_vcm,
             },
         ) * lv.rho;
         let eye_eta = w.eta_if(
             eye_here == VmHere::Valid,
-            if gather == Gather::UpgLight {
-                w.mis(1.0 / p.eye_pdf_a)
-            } else {
-                state.mis.d_vcm
+            match gather.side(eye_behind) {
+                Side::Light if gather.clamps() => w.mis(1.0 / p.eye_pdf_a),
+                _ => state.mis.d_vcm,
             },
         ) * state.density.0;
         let weight = w.connect(
@@ -944,13 +977,14 @@ impl<'a> VertexCm<'a> {
             finite_light: true,
             specular: true,
             prev_surface: false,
+            prev_glossy: false,
             mis: w.camera_origin(camera_pdf_w),
             pending: Deferred::NONE,
             density: NO_DENSITY,
         };
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
-        let mut prev: Option<EyeVertex> = None;
+        let mut prev: Option<EyeVertex<Deferred>> = None;
         loop {
             sampler.start_vertex(state.path_length);
             stats.rays += 1;
@@ -961,8 +995,8 @@ impl<'a> VertexCm<'a> {
             let dir = state.ray.dir.normalize();
             self.arrive(&w, &mut state, &hit, false);
             travelled += hit.hit.t * state.ray.dir.length();
-            // `upg-camera` merges wherever the sub-path lands: what is merged is the light
-            // vertex, reached from the previous eye vertex.
+            // `upg-camera` (and `upg-hybrid`'s camera side) merges wherever the sub-path lands:
+            // what is merged is the light vertex, reached from the previous eye vertex.
             if let (Some(upg), Some(gathered), Some(prev)) =
                 (&self.upg_merges, gathered, prev.as_ref())
             {
@@ -977,9 +1011,15 @@ impl<'a> VertexCm<'a> {
             let Some(bsdf) = self.scene().bsdf_at(&hit, -dir, TransportMode::Radiance) else {
                 break;
             };
-            state
-                .pending
-                .keep_if(self.modes.keeps_deferred(!bsdf.is_delta()));
+            if self.modes.gather == Gather::Hybrid {
+                let reached = Neighbour::surface_if(!bsdf.is_delta())
+                    .glossy_if(self.modes.is_glossy(&bsdf));
+                hybrid::decide(&w, &mut state.mis, &mut state.pending, reached);
+            } else {
+                state
+                    .pending
+                    .keep_if(self.modes.keeps_deferred(!bsdf.is_delta()));
+            }
             state.density = NO_DENSITY;
             if !bsdf.is_delta() {
                 if state.specular {
@@ -1028,7 +1068,7 @@ impl<'a> VertexCm<'a> {
                             color += state.throughput * merged;
                         }
                     }
-                    (Some(gathered), Gather::UpgLight) => {
+                    (Some(gathered), Gather::UpgLight | Gather::Hybrid) => {
                         if let Some(upg) = &self.upg_merges {
                             let merged = upg.from_light(
                                 &w,
@@ -1043,12 +1083,13 @@ impl<'a> VertexCm<'a> {
                     _ => {}
                 }
             }
-            let before =
-                (!bsdf.is_delta() && self.modes.gather == Gather::UpgCamera).then(|| EyeVertex {
+            let camera_side = matches!(self.modes.gather, Gather::UpgCamera | Gather::Hybrid);
+            let before = (!bsdf.is_delta() && camera_side).then(|| EyeVertex {
                     hit,
                     bsdf: bsdf.clone(),
                     throughput: state.throughput,
                     mis: state.mis,
+                    pending: state.pending,
                     density: state.density,
                     prev_surface: state.prev_surface,
                     path_length: state.path_length,
@@ -1195,6 +1236,9 @@ impl Integrator for VertexCm<'_> {
         }
         if self.modes.gather.clamps() {
             stats.extend(self.upg.statistics());
+        }
+        if self.modes.gather == Gather::Hybrid {
+            stats.extend(hybrid::statistics(&self.upg));
         }
         if let Some(blend) = &self.blend {
             stats.extend(blend.statistics(&self.upg));

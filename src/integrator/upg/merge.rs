@@ -8,10 +8,11 @@
 //! with `--density-mis` ([`VcmWeights::with_density`]).
 
 use super::super::connection::Connection;
-use super::super::mis::{Gather, Neighbour, VcmVertex, VcmWeights, VmHere};
-use super::super::subpath::{EyeVertex, LightVertex, SubPath};
+use super::super::mis::{Gather, Neighbour, Side, VcmVertex, VcmWeights, VmHere};
+use super::super::subpath::{EyeVertex, LightVertex, PendingMis, SubPath};
 use super::super::IterationStats;
 use super::acceptance::{AngularBound, Estimator, Outcome, StoredVerticesOnly, TentativeTracer};
+use super::hybrid::Rule;
 use super::{Deferred, UpgCounters};
 use crate::accel::Ray;
 use crate::bsdf::Bsdf;
@@ -75,6 +76,8 @@ pub struct UpgMerges<'s> {
     max_length: u32,
     /// Path length from which Russian roulette may end paths.
     roulette: u32,
+    /// `upg-hybrid`'s rule, which picks each merge's side.
+    rule: Option<Rule>,
 }
 
 impl<'s> UpgMerges<'s> {
@@ -94,6 +97,15 @@ impl<'s> UpgMerges<'s> {
             min_length,
             max_length,
             roulette,
+            rule: None,
+        }
+    }
+
+    /// `upg-hybrid`'s merges ([`Gather::Hybrid`]), each gathered from the side `rule` picks.
+    pub fn with_rule(self, rule: Rule) -> Self {
+        UpgMerges {
+            rule: Some(rule),
+            ..self
         }
     }
 
@@ -110,9 +122,11 @@ impl<'s> UpgMerges<'s> {
         stats: &mut IterationStats,
     ) -> Rgb {
         let vertices = gathered.vertices;
+        // `upg-hybrid` gathers here only the light vertices whose predecessor is rough.
         let gathers = |i: u32| {
             let i = i as usize;
             vertices[i].after_surface
+                && !vertices[i].after_glossy
                 && self.keeps(vertices[i - 1].path_length + 1 + state.path_length)
         };
         let mut gather = |i: usize| {
@@ -123,7 +137,7 @@ impl<'s> UpgMerges<'s> {
         gathered.query(w, hit.position, |batch| {
             kept(batch, gathers).for_each(|i| gather(i as usize));
         });
-        self.estimate(tentative, stats)
+        self.estimate_from(Side::Light, tentative, stats)
     }
 
     /// `upg-camera`: gathers the light vertices within r of `position`, the vertex the eye
@@ -133,14 +147,21 @@ impl<'s> UpgMerges<'s> {
     pub fn from_camera(
         &self,
         w: &VcmWeights,
-        prev: &EyeVertex<'s>,
+        prev: &EyeVertex<'s, Deferred>,
         position: Vec3,
         gathered: Gathered,
         tentative: &mut Tentative<'s>,
         stats: &mut IterationStats,
     ) -> Rgb {
         let vertices = gathered.vertices;
-        let gathers = |i: u32| self.keeps(vertices[i as usize].path_length + 1 + prev.path_length);
+        // `upg-hybrid` gathers here only the light vertices its rule gathers from this side.
+        let gathers = |i: u32| {
+            let v = &vertices[i as usize];
+            let behind = Neighbour::towards_light(v.path_length, v.after_surface)
+                .glossy_if(v.after_glossy);
+            self.gather.side(behind) == Side::Camera
+                && self.keeps(v.path_length + 1 + prev.path_length)
+        };
         let mut gather = |i: usize| {
             let photon = &gathered.vertex(w, i);
             let Some(p_bsdf) = photon.bsdf(self.scene) else {
@@ -162,11 +183,19 @@ impl<'s> UpgMerges<'s> {
             ) else {
                 return;
             };
-            // The eye sub-path's quantities as they would be at the light vertex.
+            // The eye sub-path's quantities as they would be at the light vertex, whose
+            // glossiness decides the side of a merge at the previous eye vertex.
+            let photon_side = Neighbour::Surface.glossy_if(self.is_glossy(&p_bsdf));
             let merge_at_prev = self
                 .gather
-                .merge_at(Neighbour::Surface, Neighbour::surface_if(prev.prev_surface));
-            let mut eye = carry(w, &link, prev.mis, (merge_at_prev, prev.density.0));
+                .merge_at(photon_side, Neighbour::surface_if(prev.prev_surface));
+            let mut eye = carry(
+                w,
+                &link,
+                prev.pending.settle(w, prev.mis, link.from_eval.rev_pdf_w),
+                (merge_at_prev, prev.density.0),
+                self.gather.side(photon_side) == Side::Light,
+            );
             // The merge vertex is the light vertex: the eye sub-path arrives there and takes
             // its density factor, as the light sub-path did.
             let density = w.density_at(&mut eye, (gathered.inv_k)(w, photon.position));
@@ -188,7 +217,15 @@ impl<'s> UpgMerges<'s> {
         gathered.query(w, position, |batch| {
             kept(batch, gathers).for_each(|i| gather(i as usize));
         });
-        self.estimate(tentative, stats)
+        let before = tentative.counters.merges;
+        let sum = self.estimate_from(Side::Camera, tentative, stats);
+        tentative.counters.camera_merges += tentative.counters.merges - before;
+        sum
+    }
+
+    /// Whether a surface with this BSDF is glossy by `upg-hybrid`'s rule (never without it).
+    fn is_glossy(&self, bsdf: &Bsdf) -> bool {
+        self.rule.is_some_and(|rule| rule.is_glossy(bsdf))
     }
 
     /// The merge of a gathered light vertex through Q = `q`, its predecessor (`upg`, and
@@ -221,16 +258,16 @@ impl<'s> UpgMerges<'s> {
         };
         // The light sub-path's quantities as they would be at the eye vertex; Q's own
         // neighbour towards the light decides whether merging at Q is a technique.
-        let merge_at_q = self.gather.merge_at(
-            Neighbour::towards_light(q.path_length, q.after_surface),
-            Neighbour::Surface,
-        );
+        let behind_q =
+            Neighbour::towards_light(q.path_length, q.after_surface).glossy_if(q.after_glossy);
+        let merge_at_q = self.gather.merge_at(behind_q, Neighbour::Surface);
         // The merge vertex is the eye vertex, whose density factor the eye sub-path holds.
         let mut light = carry(
             w,
             &link,
             q.mis_at(w, link.from_eval.rev_pdf_w),
             (merge_at_q, q.rho),
+            self.gather.side(behind_q) == Side::Camera,
         );
         w.visit(&mut light, state.density.1);
         let weight = w.merge(
@@ -280,35 +317,52 @@ impl<'s> UpgMerges<'s> {
     /// Estimates 1/p_acc for the merges of one gather, together so that packets can take lanes
     /// from all of them, and returns the sum of their contributions.
     pub(super) fn estimate(&self, tentative: &mut Tentative, stats: &mut IterationStats) -> Rgb {
-        // `upg` gathers light vertices, which lie on non-delta surfaces only; `upg-camera`
-        // gathers at wherever the eye sub-path lands.
-        match self.gather {
-            Gather::UpgLight | Gather::Blend => {
+        let side = match self.gather {
+            Gather::UpgCamera => Side::Camera,
+            _ => Side::Light,
+        };
+        self.estimate_from(side, tentative, stats)
+    }
+
+    /// [`Self::estimate`] for merges gathered from `side`.
+    fn estimate_from(&self, side: Side, tentative: &mut Tentative, stats: &mut IterationStats) -> Rgb {
+        // The light side gathers light vertices, which lie on non-delta surfaces only; the
+        // camera side gathers at wherever the eye sub-path lands.
+        match side {
+            Side::Light => {
                 tentative.estimate(&self.estimator, &StoredVerticesOnly(self.scene), stats)
             }
-            _ => tentative.estimate(&self.estimator, self.scene, stats),
+            Side::Camera => tentative.estimate(&self.estimator, self.scene, stats),
         }
     }
 }
 
 /// The MIS quantities of the sub-path that ends at the first vertex of `c` (`at_from`),
 /// carried across it to the second (001 eqs. (34)-(36)); a merge at the first vertex is a
-/// technique or not as `merge_at_from` says, with density factor `rho` (002 eq. (6)).
+/// technique or not as `merge_at_from` says, with density factor `rho` (002 eq. (6)). Its eta
+/// takes the carried sub-path's own pdf of the first vertex (its d^VCM), or where the other
+/// side gathers it (`by_other_side`, `upg-hybrid`), the second vertex's across `c` (000 eq.
+/// 2.81).
 fn carry(
     w: &VcmWeights,
     c: &Connection,
     at_from: VcmVertex,
     (merge_at_from, rho): (VmHere, f32),
+    by_other_side: bool,
 ) -> VcmVertex {
     let mut v = at_from;
-    w.scatter(
+    let valid = merge_at_from == VmHere::Valid;
+    let ratio = w.scatter(
         &mut v,
         c.cos_from,
         c.from_eval.pdf_w,
         c.from_eval.rev_pdf_w,
         false,
-        (merge_at_from == VmHere::Valid, rho),
+        (valid && !by_other_side, rho),
     );
+    if valid && by_other_side {
+        v = w.settle_merge(v, ratio * rho, w.mis(1.0 / c.from_pdf_a()));
+    }
     w.arrive(&mut v, c.distance, c.cos_to, true);
     v
 }

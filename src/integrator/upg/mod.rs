@@ -7,6 +7,8 @@
 //!   (`upg-camera`), gathered and estimated together per eye vertex;
 //! - `blend.rs`: `vcm-upg`, each merge made by VCM's density estimate or by UPG's gather from
 //!   the light side, chosen by the length of its tentative ray;
+//! - `hybrid.rs`: `upg-hybrid`, each merge gathered from the light side or the camera side as
+//!   the glossiness of the merge vertex's neighbour towards the light decides, and its weights;
 //! - here: [`Deferred`], the weight term of a merge that only the sub-path's next vertex can
 //!   decide, and [`UpgCounters`], the tentative-ray work.
 
@@ -17,6 +19,7 @@ use std::time::Duration;
 
 pub mod acceptance;
 pub mod blend;
+pub mod hybrid;
 pub mod merge;
 
 /// A merge at a sub-path's previous vertex gathered from the other side (VmHere::Deferred):
@@ -30,10 +33,19 @@ pub struct Deferred {
     vm: f32,
     /// mis(|cos| / d^2) of the merge vertex seen from the current vertex.
     g: f32,
+    /// `upg-hybrid`'s eye sub-paths: mis(1 / p) of the area pdf with which the sub-path's own
+    /// side sampled the merge vertex, for the gather from that side that the rule picks where
+    /// the vertex reached is not a rough surface vertex ([`Self::settle_own`]); 0 where that
+    /// side cannot gather (the vertex before the merge vertex is no non-delta surface).
+    own: f32,
 }
 
 impl Deferred {
-    pub const NONE: Deferred = Deferred { vm: 0.0, g: 0.0 };
+    pub const NONE: Deferred = Deferred {
+        vm: 0.0,
+        g: 0.0,
+        own: 0.0,
+    };
 
     /// Leaving a merge vertex whose merge is deferred: `ratio` is what [`VcmWeights::scatter`]
     /// returned, `cos_out` the |cos| of the sampled direction there, `rho` the merge's density
@@ -42,7 +54,28 @@ impl Deferred {
         Deferred {
             vm: ratio * rho,
             g: w.mis(cos_out),
+            own: 0.0,
         }
+    }
+
+    /// The same merge, gatherable from the sub-path's own side too, whose area pdf of the
+    /// merge vertex gives `own_inv_pdf` = mis(1 / p) (a d^VCM on arrival there), 0 where that
+    /// side cannot gather.
+    pub fn with_own(self, own_inv_pdf: f32) -> Self {
+        Deferred {
+            own: own_inv_pdf,
+            ..self
+        }
+    }
+
+    /// `v` with the merge's terms as the gather from the sub-path's own side makes them: its
+    /// eta_j from the pdf known since the merge vertex (000 eq. 2.81), no pdf of the current
+    /// vertex needed; `v` unchanged where that side cannot gather.
+    pub fn settle_own(&self, w: &VcmWeights, v: VcmVertex) -> VcmVertex {
+        if self.vm == 0.0 || self.own == 0.0 {
+            return v;
+        }
+        w.settle_merge(v, self.vm, self.own)
     }
 }
 
@@ -93,6 +126,8 @@ pub struct UpgCounters {
     pub capped: u64,
     /// `vcm-upg`: merges made by density estimate instead of tentative rays.
     pub density_merges: u64,
+    /// `upg-hybrid`: merges gathered from the camera side (the rest from the light side).
+    pub camera_merges: u64,
 }
 
 impl std::ops::Add for UpgCounters {
@@ -105,6 +140,7 @@ impl std::ops::Add for UpgCounters {
             packet_rays: self.packet_rays + other.packet_rays,
             capped: self.capped + other.capped,
             density_merges: self.density_merges + other.density_merges,
+            camera_merges: self.camera_merges + other.camera_merges,
         }
     }
 }
@@ -116,6 +152,7 @@ impl UpgCounters {
     const PACKET_RAYS: &'static str = "upg_packet_rays";
     const CAPPED: &'static str = "upg_capped_merges";
     const DENSITY_MERGES: &'static str = "density_merges";
+    const CAMERA_MERGES: &'static str = "upg_camera_side_merges";
 
     /// The counters as the integrator reports them ([`super::Integrator::counters`]).
     pub fn named(&self) -> Counters {
@@ -126,6 +163,7 @@ impl UpgCounters {
             (Self::PACKET_RAYS, self.packet_rays),
             (Self::CAPPED, self.capped),
             (Self::DENSITY_MERGES, self.density_merges),
+            (Self::CAMERA_MERGES, self.camera_merges),
         ])
     }
 
@@ -139,6 +177,7 @@ impl UpgCounters {
             packet_rays: get(Self::PACKET_RAYS),
             capped: get(Self::CAPPED),
             density_merges: get(Self::DENSITY_MERGES),
+            camera_merges: get(Self::CAMERA_MERGES),
         };
         (upg.merges > 0).then_some(upg)
     }
