@@ -14,7 +14,10 @@
 //! with merge-only UPG, whose merges share each path among themselves, and with a radius of
 //! its own for every eye sub-path (001 sec. 6.1), the light sub-path carrying c^VC and c^VM.
 //! 002's density factors (VCM+, VCM*) are checked on VCM's merges and on UPG's from either
-//! side, deferred merges included, at three radii up to where UPG's clamp binds.
+//! side, deferred merges included, at three radii up to where UPG's clamp binds. `upg-hybrid`,
+//! whose rule gathers each merge from one side by the roughness of its neighbour towards the
+//! light, is checked wherever `upg` and `upg-camera` are: its rule evaluated on the full path
+//! gives each technique's eta, the sub-paths' recursions decide it as vcm.rs does.
 
 mod common;
 
@@ -22,11 +25,11 @@ use glam::Vec3;
 use std::ops::ControlFlow;
 use vmerge::bsdf::{Bsdf, MaterialKind, TransportMode};
 use vmerge::integrator::mis::{
-    self, BptStep, BptVertex, ConnectionPdfs, Gather, LightSamplePdfs, Neighbour, Power, VcmVertex,
-    VcmWeights, VmHere, NO_DENSITY,
+    self, BptStep, BptVertex, ConnectionPdfs, Gather, LightSamplePdfs, Neighbour, Power, Side,
+    VcmVertex, VcmWeights, VmHere, NO_DENSITY,
 };
 use vmerge::integrator::subpath::{self, MisStep, PendingMis};
-use vmerge::integrator::upg::Deferred;
+use vmerge::integrator::upg::{hybrid, Deferred};
 use vmerge::light::Aim;
 use vmerge::options::DensityMis;
 use vmerge::sampling::{Rng, Stream};
@@ -34,6 +37,10 @@ use vmerge::scene::{Camera, Scene};
 
 /// Pixels of the test camera: n_VC = n_VM.
 const PIXELS: u32 = 16;
+
+/// `upg-hybrid`'s threshold here: between the scenes' glossy and rough lobes (Phong exponents
+/// 100 and 10 give alphas 0.14 and 0.41), so both sides gather.
+const HYBRID_ROUGHNESS: f32 = 0.3;
 
 /// One vertex of a full path, light (index 0) to camera (index k).
 #[derive(Clone, Copy)]
@@ -181,6 +188,8 @@ struct PathPdfs {
     light_a: Vec<f32>,
     eye_a: Vec<f32>,
     connectable: Vec<bool>,
+    /// x_i is glossy by `upg-hybrid`'s rule at [`HYBRID_ROUGHNESS`].
+    glossy: Vec<bool>,
     /// The camera's per-pixel solid-angle pdf of the direction to x_{k-1}.
     camera_pdf_w: f32,
 }
@@ -209,6 +218,7 @@ fn evaluate(setup: &Setup, path: &FullPath) -> PathPdfs {
     let (mut light_w, mut eye_w) = (vec![1.0f32; k + 1], vec![1.0f32; k + 1]);
     let (mut cos_next, mut cos_prev) = (vec![1.0f32; k + 1], vec![1.0f32; k + 1]);
     let mut connectable = vec![true; k + 1];
+    let mut glossy = vec![false; k + 1];
     for i in 1..k {
         let Vertex::Surface {
             ng,
@@ -224,6 +234,7 @@ fn evaluate(setup: &Setup, path: &FullPath) -> PathPdfs {
         cos_next[i] = ng.dot(to_next).abs();
         cos_prev[i] = ng.dot(to_prev).abs();
         connectable[i] = !delta;
+        glossy[i] = hybrid::roughness(kind) < HYBRID_ROUGHNESS;
         if !delta {
             let light_bsdf = Bsdf::new(kind, ng, to_prev, TransportMode::Importance).unwrap();
             let e = light_bsdf.eval(to_next);
@@ -277,6 +288,7 @@ fn evaluate(setup: &Setup, path: &FullPath) -> PathPdfs {
         light_a,
         eye_a,
         connectable,
+        glossy,
         camera_pdf_w,
     }
 }
@@ -515,16 +527,16 @@ fn vcm_weights_with(
     let rho = |i: usize| density(i).0;
     let neighbour = |i: usize| match i {
         0 => Neighbour::Light,
-        _ => Neighbour::surface_if(surface(i)),
+        _ => Neighbour::surface_if(surface(i)).glossy_if(q.glossy[i]),
     };
     let merge_valid = |j: usize| {
         surface(j) && gather.merge_at(neighbour(j - 1), neighbour(j + 1)) == VmHere::Valid
     };
     // mis(eta_j) of the merge at x_j from the gathering side's area pdf of x_j (000 eq. 2.80).
     let eta = |j: usize| {
-        let gather_pdf = match gather {
-            Gather::Density | Gather::UpgLight | Gather::Blend => q.light_a[j],
-            Gather::UpgCamera => q.eye_a[j],
+        let gather_pdf = match gather.side(neighbour(j - 1)) {
+            Side::Light => q.light_a[j],
+            Side::Camera => q.eye_a[j],
         };
         eye_w.eta_if(merge_valid(j), w.mis(1.0 / gather_pdf))
     };
@@ -561,9 +573,11 @@ fn vcm_weights_with(
             with_distance,
             surface: surface(i),
         });
+        // The light sub-path defers only merges gathered from the camera side, whose
+        // neighbour towards the light is one the camera side gathers next to (`Glossy`).
         state
             .deferred
-            .keep_if(gather.merge_at(Neighbour::Surface, neighbour(i)) == VmHere::Valid);
+            .keep_if(gather.merge_at(Neighbour::Glossy, neighbour(i)) == VmHere::Valid);
         let (light_rho, light_inv_k) = density_at(i, w.radius);
         if surface(i) && inv_k(i, w.radius).is_some() {
             w.visit(&mut state.mis, light_inv_k);
@@ -616,15 +630,21 @@ fn vcm_weights_with(
         if q.connectable[i] {
             w = eye_w;
         }
-        state
-            .deferred
-            .keep_if(gather.merge_at(neighbour(i), Neighbour::Surface) == VmHere::Valid);
+        if gather == Gather::Hybrid {
+            hybrid::decide(w, &mut state.mis, &mut state.deferred, neighbour(i));
+        } else {
+            state
+                .deferred
+                .keep_if(gather.merge_at(neighbour(i), Neighbour::Surface) == VmHere::Valid);
+        }
         if let (true, Some(inv)) = (surface(i), inv_k(i, eye_w.radius)) {
             w.visit(&mut state.mis, inv);
         }
         eye[i] = state;
         let here = gather.merge_at(Neighbour::Unknown, neighbour(i + 1));
         let delta = !q.connectable[i];
+        // `upg-hybrid` may gather the merge here from the eye side, its pdf known now.
+        let own = if surface(i + 1) { state.mis.d_vcm } else { 0.0 };
         state.scatter(
             w,
             q.cos_prev[i],
@@ -633,11 +653,17 @@ fn vcm_weights_with(
             delta,
             (here, rho(i)),
         );
+        if gather == Gather::Hybrid {
+            state.deferred = state.deferred.with_own(own);
+        }
     }
     // Reaching the light: area lights add the last segment, the sky does not; the light
     // point is no surface to merge through.
     if !l.infinite {
         state.arrive(w, q.dist2[0].sqrt(), l.cos_at_light, true);
+    }
+    if gather == Gather::Hybrid {
+        hybrid::decide(w, &mut state.mis, &mut state.deferred, Neighbour::Light);
     }
     eye[0] = state;
     // Every technique weighs with the eye sub-path's radius.
@@ -705,9 +731,11 @@ fn vcm_weights_with(
 }
 
 /// The techniques checked with a radius per eye sub-path whose light sub-paths are re-run.
-const PER_PIXEL: [(&str, Gather, Option<DensityMis>); 8] = [
+const PER_PIXEL: [(&str, Gather, Option<DensityMis>); 10] = [
     ("upg", Gather::UpgLight, None),
     ("upg-camera", Gather::UpgCamera, None),
+    ("upg-hybrid", Gather::Hybrid, None),
+    ("upg-hybrid vcm*", Gather::Hybrid, Some(DensityMis::Star)),
     ("vcm+", Gather::Density, Some(DensityMis::Plus)),
     ("vcm*", Gather::Density, Some(DensityMis::Star)),
     ("upg vcm+", Gather::UpgLight, Some(DensityMis::Plus)),
@@ -752,6 +780,8 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
     };
     let (mut specular, mut merged, mut clamped, mut shared_merges) = (0, 0, 0, 0);
     let mut per_pixel_mixed = 0;
+    // upg-hybrid's merges that weigh, gathered from the light side and from the camera side.
+    let mut hybrid_sides = [0usize; 2];
     let (mut replay_mixed, mut replay_needed) = (
         std::collections::HashMap::<&str, usize>::new(),
         std::collections::HashMap::<&str, usize>::new(),
@@ -788,6 +818,7 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                 Gather::Density,
                 Gather::UpgLight,
                 Gather::UpgCamera,
+                Gather::Hybrid,
                 Gather::Blend,
             ] {
                 // Large radii make UPG's clamped acceptance min(p pi r^2, 1) bind.
@@ -807,6 +838,14 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                     );
                     if vm.iter().any(|&m| m > 1e-3) {
                         merged += 1;
+                    }
+                    if gather == Gather::Hybrid {
+                        // Which side gathered each merge that weighs: the rule on x_{j-1}.
+                        for (j, _) in vm.iter().enumerate().filter(|(_, &m)| m > 1e-3) {
+                            let x = j + 1;
+                            let rough = x >= 2 && q.connectable[x - 1] && !q.glossy[x - 1];
+                            hybrid_sides[usize::from(!rough)] += 1;
+                        }
                     }
                     if gather.clamps() {
                         // Merge-only UPG (000 sec. 5.2): the merges of a path that has any
@@ -848,6 +887,7 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
                     ("vcm", Gather::Density, [1e-3, 1e-2, 0.1]),
                     ("upg", Gather::UpgLight, [1e-2, 0.1, 1.0]),
                     ("upg-camera", Gather::UpgCamera, [1e-2, 0.1, 1.0]),
+                    ("upg-hybrid", Gather::Hybrid, [1e-2, 0.1, 1.0]),
                 ] {
                     for radius in radii {
                         let plain = if gather == Gather::Density {
@@ -1025,7 +1065,11 @@ fn check_scene(name: &str, aim: Aim) -> (usize, usize) {
         );
     }
     assert!(clamped > 0, "{name}: the clamp never bound");
-    for label in ["vcm", "upg", "upg-camera"] {
+    assert!(
+        hybrid_sides.iter().all(|&n| n > 0),
+        "{name}: upg-hybrid's merges from the light and the camera side: {hybrid_sides:?}"
+    );
+    for label in ["vcm", "upg", "upg-camera", "upg-hybrid"] {
         for mode in [DensityMis::Plus, DensityMis::Star] {
             assert!(
                 reweighted.get(&(label, mode.name())).copied().unwrap_or(0) > 0,
