@@ -73,6 +73,7 @@ EXAMPLES = {
     "upg_max_trials": ("upg", 500),
     "blend_near": ("vcm-upg", 2.0),
     "blend_far": ("vcm-upg", 8.0),
+    "hybrid_roughness": ("upg-hybrid", 0.3),
     "sampler": ("pt", "independent"),
     "no_shading_normals": ("pt", True),
     "density_mis": ("vcm", "vcm+"),

@@ -507,7 +507,11 @@ impl<'a> VertexCm<'a> {
         // rays, so the deferred merge before it is the camera side's; a merge here may be too,
         // with the pdf of this vertex known now, where the vertex before is a surface vertex.
         let hybrid_eye = !light_side && self.modes.gather == Gather::Hybrid;
-        let own = if state.prev_surface { state.mis.d_vcm } else { 0.0 };
+        let own = if state.prev_surface {
+            state.mis.d_vcm
+        } else {
+            0.0
+        };
         if s.delta && hybrid_eye {
             state.mis = state.pending.settle_own(w, state.mis);
         }
@@ -849,8 +853,8 @@ impl<'a> VertexCm<'a> {
         // (its d^VCM) or, when the other side gathers, the other end's across the connection.
         // Each end's neighbour towards the light decides its side under `upg-hybrid`'s rule.
         let gather = self.modes.gather;
-        let light_behind = Neighbour::towards_light(lv.path_length, lv.after_surface)
-            .glossy_if(lv.after_glossy);
+        let light_behind =
+            Neighbour::towards_light(lv.path_length, lv.after_surface).glossy_if(lv.after_glossy);
         let eye_behind = Neighbour::Surface.glossy_if(self.modes.is_glossy(&light_bsdf));
         let light_here = gather.merge_at(light_behind, Neighbour::Surface);
         let eye_here = gather.merge_at(eye_behind, Neighbour::surface_if(state.prev_surface));
@@ -1012,8 +1016,8 @@ impl<'a> VertexCm<'a> {
                 break;
             };
             if self.modes.gather == Gather::Hybrid {
-                let reached = Neighbour::surface_if(!bsdf.is_delta())
-                    .glossy_if(self.modes.is_glossy(&bsdf));
+                let reached =
+                    Neighbour::surface_if(!bsdf.is_delta()).glossy_if(self.modes.is_glossy(&bsdf));
                 hybrid::decide(&w, &mut state.mis, &mut state.pending, reached);
             } else {
                 state
@@ -1085,15 +1089,15 @@ impl<'a> VertexCm<'a> {
             }
             let camera_side = matches!(self.modes.gather, Gather::UpgCamera | Gather::Hybrid);
             let before = (!bsdf.is_delta() && camera_side).then(|| EyeVertex {
-                    hit,
-                    bsdf: bsdf.clone(),
-                    throughput: state.throughput,
-                    mis: state.mis,
-                    pending: state.pending,
-                    density: state.density,
-                    prev_surface: state.prev_surface,
-                    path_length: state.path_length,
-                });
+                hit,
+                bsdf: bsdf.clone(),
+                throughput: state.throughput,
+                mis: state.mis,
+                pending: state.pending,
+                density: state.density,
+                prev_surface: state.prev_surface,
+                path_length: state.path_length,
+            });
             if self
                 .scatter(&w, &mut state, &hit, &bsdf, &mut sampler, false)
                 .is_none()

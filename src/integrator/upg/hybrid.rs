@@ -107,9 +107,7 @@ pub fn roughness(kind: &MaterialKind) -> f32 {
             microfacet(roughness.distribution())
         }
         // The smooth coating's reflection is a delta lobe beside the diffuse base.
-        MaterialKind::CoatedDiffuse { coating, .. } => {
-            least(top(coating), Some(1.0))
-        }
+        MaterialKind::CoatedDiffuse { coating, .. } => least(top(coating), Some(1.0)),
         MaterialKind::CoatedConductor {
             roughness, coating, ..
         } => least(top(coating), microfacet(roughness.distribution())),

@@ -157,8 +157,8 @@ impl<'s> UpgMerges<'s> {
         // `upg-hybrid` gathers here only the light vertices its rule gathers from this side.
         let gathers = |i: u32| {
             let v = &vertices[i as usize];
-            let behind = Neighbour::towards_light(v.path_length, v.after_surface)
-                .glossy_if(v.after_glossy);
+            let behind =
+                Neighbour::towards_light(v.path_length, v.after_surface).glossy_if(v.after_glossy);
             self.gather.side(behind) == Side::Camera
                 && self.keeps(v.path_length + 1 + prev.path_length)
         };
@@ -325,7 +325,12 @@ impl<'s> UpgMerges<'s> {
     }
 
     /// [`Self::estimate`] for merges gathered from `side`.
-    fn estimate_from(&self, side: Side, tentative: &mut Tentative, stats: &mut IterationStats) -> Rgb {
+    fn estimate_from(
+        &self,
+        side: Side,
+        tentative: &mut Tentative,
+        stats: &mut IterationStats,
+    ) -> Rgb {
         // The light side gathers light vertices, which lie on non-delta surfaces only; the
         // camera side gathers at wherever the eye sub-path lands.
         match side {
