@@ -25,8 +25,9 @@ pub enum Technique {
     Vcm,
     Upg,
     UpgCamera,
-    UpgHybrid,
     VcmUpg,
+    // Last, so the others keep their discriminants (tests seed renders by them).
+    UpgHybrid,
 }
 
 impl Technique {

@@ -404,6 +404,7 @@ fn options_written_as_arguments_come_back_from_the_image() {
             upg_max_trials: 50,
             blend_near: 1.0,
             blend_far: 3.0,
+            hybrid_roughness: 0.35,
             density_mis: Some(DensityMis::Star),
             density_map_iterations: 2,
             no_shading_normals: true,
