@@ -40,6 +40,7 @@ fn values(name: &str) -> Vec<String> {
         // Each with the other at its default (4 to 12 radii), and pairwise in order.
         "blend_near" => s(&["0", "0.5", "5.5"]),
         "blend_far" => vec!["4.5".into(), "10".into(), f_max],
+        "hybrid_roughness" => vec!["0".into(), f_min, "0.05".into(), "1".into(), f_max],
         "sampler" => s(&["independent"]),
         "density_mis" => s(&["vcm+", "vcm*"]),
         "memory" => s(&["one-stage"]),
