@@ -33,6 +33,8 @@ struct ProgressView {
     rays_per_second: f64,
     upg_merges_per_second: Option<f64>,
     upg_tentative_rays_per_second: Option<f64>,
+    /// The share of UPG's merges gathered from the camera side (`upg-hybrid` splits them).
+    upg_camera_side_share: Option<f64>,
 }
 
 /// What the render's thread hands the converting thread.
@@ -234,6 +236,7 @@ impl LivePreview {
             rays_per_second: progress.rays_per_second,
             upg_merges_per_second: upg.map(|u| u.merges as f64 / seconds),
             upg_tentative_rays_per_second: upg.map(|u| u.tentative_rays as f64 / seconds),
+            upg_camera_side_share: upg.map(|u| u.camera_merges as f64 / u.merges as f64),
         }
     }
 }
