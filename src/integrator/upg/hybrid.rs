@@ -8,7 +8,8 @@
 //! x_{i-1} samples x_i, p_E(x_i) the one with which x_{i+1} does, and prefixes p_L(x_0..x_i),
 //! p_E(x_k..x_i) the sub-paths' pdfs. A merge at x_j gathered from the light side joins a light
 //! sub-path to x_{j-1} with an eye sub-path to x_j, whose light vertex lands within r of x_j
-//! with the acceptance min(p_L(x_j) pi r^2, 1) (000 eq. 2.80): pdf
+//! with an acceptance probability that tentative rays from x_{j-1} estimate without bias (000
+//! eqs. 2.56-2.66) and the weights approximate by min(p_L(x_j) pi r^2, 1) (000 eq. 2.80): pdf
 //! p_L(x_0..x_{j-1}) p_E(x_k..x_j) n_VM min(p_L(x_j) pi r^2, 1). Gathered from the camera side
 //! it is p_L(x_0..x_j) p_E(x_k..x_{j+1}) n_VM min(p_E(x_j) pi r^2, 1). Unclamped both are
 //! n_VM pi r^2 p_L(x_0..x_j) p_E(x_k..x_j): the two gathers sample the same paths with the
