@@ -699,12 +699,27 @@ fn vcm_weights_with(
                     rev,
                 )
             } else {
+                // Each end's eta as vcm.rs picks its gathering side's pdf.
                 let p = connection_pdfs(q, s);
+                let light_eta = w.end_eta(
+                    gather,
+                    merge_valid(s - 1),
+                    (Side::Light, neighbour(s - 2)),
+                    light[s - 1].mis.d_vcm,
+                    p.light_pdf_a,
+                );
+                let eye_eta = w.end_eta(
+                    gather,
+                    merge_valid(s),
+                    (Side::Camera, neighbour(s - 1)),
+                    eye[s].mis.d_vcm,
+                    p.eye_pdf_a,
+                );
                 w.connect(
                     &light_at(s - 1, p.light_rev_pdf_w),
-                    eta(s - 1) * light[s - 1].rho,
+                    light_eta * light[s - 1].rho,
                     &eye[s].at(w, p.eye_rev_pdf_w),
-                    eta(s) * rho(s),
+                    eye_eta * rho(s),
                     &p,
                 )
             }

@@ -524,6 +524,27 @@ impl VcmWeights {
         }
     }
 
+    /// mis(eta_j) of the merge at a connection's end x_j on sub-path side `own`, whose
+    /// neighbour towards the light is `behind` (000 eqs. 2.80-2.82 under UPG's clamp): the
+    /// gathering side's area pdf of x_j is the end's own sub-path's, its d^VCM `own_d_vcm`
+    /// (001 eq. (34)), where that side gathers, else the other end's across the connection,
+    /// `across_pdf_a`.
+    pub fn end_eta(
+        &self,
+        gather: Gather,
+        valid: bool,
+        (own, behind): (Side, Neighbour),
+        own_d_vcm: f32,
+        across_pdf_a: f32,
+    ) -> f32 {
+        let inv_pdf = if gather.clamps() && gather.side(behind) != own {
+            self.mis(1.0 / across_pdf_a)
+        } else {
+            own_d_vcm
+        };
+        self.eta_if(valid, inv_pdf)
+    }
+
     /// A non-delta surface vertex with 1 / k = `inv_k` joins the sub-path's VCM* mean.
     pub fn visit(&self, v: &mut VcmVertex, inv_k: f32) {
         if self.density == Some(DensityMis::Star) {

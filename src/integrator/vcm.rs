@@ -858,19 +858,19 @@ impl<'a> VertexCm<'a> {
         let eye_behind = Neighbour::Surface.glossy_if(self.modes.is_glossy(&light_bsdf));
         let light_here = gather.merge_at(light_behind, Neighbour::Surface);
         let eye_here = gather.merge_at(eye_behind, Neighbour::surface_if(state.prev_surface));
-        let light_eta = w.eta_if(
+        let light_eta = w.end_eta(
+            gather,
             light_here == VmHere::Valid,
-            match gather.side(light_behind) {
-                Side::Camera => w.mis(1.0 / p.light_pdf_a),
-                Side::Light => lv.mis.d_vcm,
-            },
+            (Side::Light, light_behind),
+            lv.mis.d_vcm,
+            p.light_pdf_a,
         ) * lv.rho;
-        let eye_eta = w.eta_if(
+        let eye_eta = w.end_eta(
+            gather,
             eye_here == VmHere::Valid,
-            match gather.side(eye_behind) {
-                Side::Light if gather.clamps() => w.mis(1.0 / p.eye_pdf_a),
-                _ => state.mis.d_vcm,
-            },
+            (Side::Camera, eye_behind),
+            state.mis.d_vcm,
+            p.eye_pdf_a,
         ) * state.density.0;
         let weight = w.connect(
             &self.light_mis(w, lv.mis_at(w, p.light_rev_pdf_w)),
