@@ -1027,6 +1027,9 @@ impl Loader {
                 mesh.shading_normals,
                 transform.map(|(linear, _)| linear),
             )?;
+            self.geometry.positions.reserve(m.positions.len() / 3);
+            self.geometry.triangles.reserve(m.indices.len() / 3);
+            self.triangle_materials.reserve(m.indices.len() / 3);
             for (k, p) in m.positions.chunks_exact(3).enumerate() {
                 let mut v = Vec3::new(p[0], p[1], p[2]);
                 if !v.is_finite() {
