@@ -1357,3 +1357,67 @@ fn unknown_mtl_statements(path: &Path, text: &str) -> Vec<Warning> {
     }
     warnings
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// More meshes than one parallel batch holds, mesh k a triangle at x = k.
+    const MESHES: usize = 11;
+
+    fn write_scene(dir: &Path, broken: &[(usize, &str)]) -> PathBuf {
+        let mut toml = String::from(
+            "[[camera]]\nname = \"c\"\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nfov = 40.0\n",
+        );
+        for k in 0..MESHES {
+            let name = format!("m{k}.obj");
+            let text = match broken.iter().find(|(i, _)| *i == k) {
+                Some((_, text)) => text.to_string(),
+                None => format!("v {k} 0 0\nv {k} 1 0\nv {k} 0 1\nf 1 2 3\n"),
+            };
+            if !text.is_empty() {
+                std::fs::write(dir.join(&name), text).unwrap();
+            }
+            toml += &format!("[[mesh]]\nfile = \"{name}\"\n");
+        }
+        let path = dir.join("scene.toml");
+        std::fs::write(&path, toml).unwrap();
+        path
+    }
+
+    fn options() -> LoadOptions {
+        LoadOptions {
+            accel: AccelKind::default_kind(),
+            lenient: false,
+            shading_normals: true,
+        }
+    }
+
+    #[test]
+    fn meshes_read_in_parallel_join_in_file_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let parts = load_parts(&write_scene(dir.path(), &[]), &options()).unwrap();
+        let xs: Vec<f32> = parts
+            .geometry
+            .triangles
+            .iter()
+            .map(|t| parts.geometry.positions[t[0] as usize].x)
+            .collect();
+        assert_eq!(xs, (0..MESHES).map(|k| k as f32).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn the_first_broken_mesh_in_file_order_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        // mesh[3]'s file is missing (an empty text writes no file), mesh[8]'s face is short.
+        let scene = write_scene(dir.path(), &[(3, ""), (8, "v 0 0 0\nf 1 1\n")]);
+        let message = load_parts(&scene, &options()).err().unwrap().to_string();
+        assert!(message.contains("mesh[3]"), "{message}");
+        let scene = write_scene(dir.path(), &[(3, "v 0 0 0\nf 1 1\n"), (8, "")]);
+        let message = load_parts(&scene, &options()).err().unwrap().to_string();
+        assert!(
+            message.contains("m3.obj") && message.contains("line 2"),
+            "{message}"
+        );
+    }
+}
