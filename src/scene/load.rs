@@ -20,6 +20,7 @@ use crate::files::{self, Kind};
 use crate::light::{EnvMapDesc, SceneBounds, SkyDesc};
 use crate::light::{Light, SpotCone, SpotError};
 use glam::{Mat3, Vec2, Vec3};
+use rayon::prelude::*;
 use serde::Deserialize;
 use std::collections::{BTreeMap, HashMap};
 use std::path::{Path, PathBuf};
@@ -300,6 +301,42 @@ fn check_array_lengths(path: &Path, at: &str, table: &toml::Table) -> Result<(),
     Ok(())
 }
 
+/// A mesh file as read and parsed, before its contents join the scene.
+struct ReadMesh {
+    path: PathBuf,
+    bytes: Vec<u8>,
+    obj: wavefront::Obj,
+}
+
+/// Reads and parses the file of `mesh`, the scene file's entry `mesh[i]` (the scene file is
+/// `scene_path`, in the folder `dir`).
+fn read_mesh(
+    scene_path: &Path,
+    dir: &Path,
+    i: usize,
+    mesh: &MeshTable,
+) -> Result<ReadMesh, SceneError> {
+    let entry = format!("mesh[{i}]");
+    let invalid = |message: String| SceneError::Invalid {
+        file: scene_path.to_path_buf(),
+        entry: format!("{entry}.file"),
+        message,
+    };
+    if mesh.file.as_os_str().is_empty() {
+        return Err(invalid("the path is empty".into()));
+    }
+    let path = dir.join(&mesh.file);
+    // Named with the scene's entry: the path may be a typo the mesh file cannot tell.
+    let bytes = files::read(&path, Kind::Obj).map_err(|e| invalid(e.to_string()))?;
+    let load_options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: false,
+        ..Default::default()
+    };
+    let obj = wavefront::load_obj(&path, &bytes, &load_options, &entry)?;
+    Ok(ReadMesh { path, bytes, obj })
+}
+
 struct Loader {
     path: PathBuf,
     dir: PathBuf,
@@ -432,8 +469,19 @@ impl Loader {
             );
         }
         self.mixes(&file.material)?;
-        for (i, mesh) in file.mesh.iter().enumerate() {
-            self.mesh(i, mesh)?;
+        // Reading and parsing the mesh files is most of a large scene's load, and each needs
+        // nothing from the others: a batch of them at a time in parallel (so that no more are
+        // held at once), their contents then joining the scene in the file's order.
+        let batch = 2 * rayon::current_num_threads();
+        for (b, meshes) in file.mesh.chunks(batch).enumerate() {
+            let read: Vec<Result<ReadMesh, SceneError>> = meshes
+                .par_iter()
+                .enumerate()
+                .map(|(k, mesh)| read_mesh(&self.path, &self.dir, b * batch + k, mesh))
+                .collect();
+            for (k, (mesh, read)) in meshes.iter().zip(read).enumerate() {
+                self.mesh(b * batch + k, mesh, read?)?;
+            }
         }
         for (i, s) in file.sphere.iter().enumerate() {
             let entry = format!("sphere[{i}]");
@@ -862,22 +910,16 @@ impl Loader {
         })
     }
 
-    fn mesh(&mut self, i: usize, mesh: &MeshTable) -> Result<(), SceneError> {
+    /// Adds a mesh read by [`read_mesh`] to the scene.
+    fn mesh(&mut self, i: usize, mesh: &MeshTable, read: ReadMesh) -> Result<(), SceneError> {
         let entry = format!("mesh[{i}]");
-        if mesh.file.as_os_str().is_empty() {
-            return Err(self.invalid(format!("{entry}.file"), "the path is empty"));
-        }
-        let obj_path = self.dir.join(&mesh.file);
-        // Named with the scene's entry: the path may be a typo the mesh file cannot tell.
-        let bytes = files::read(&obj_path, Kind::Obj)
-            .map_err(|e| self.invalid(format!("{entry}.file"), e.to_string()))?;
+        let ReadMesh {
+            path: obj_path,
+            bytes,
+            obj,
+        } = read;
         self.builder.input(&obj_path, &bytes);
-        let load_options = tobj::LoadOptions {
-            triangulate: true,
-            single_index: false,
-            ..Default::default()
-        };
-        let obj = wavefront::load_obj(&obj_path, &bytes, &load_options, &entry)?;
+        drop(bytes);
         for mtl in &obj.mtl_files {
             self.builder.input(&mtl.path, &mtl.bytes);
             for w in unknown_mtl_statements(&mtl.path, &String::from_utf8_lossy(&mtl.bytes)) {
@@ -985,6 +1027,9 @@ impl Loader {
                 mesh.shading_normals,
                 transform.map(|(linear, _)| linear),
             )?;
+            self.geometry.positions.reserve(m.positions.len() / 3);
+            self.geometry.triangles.reserve(m.indices.len() / 3);
+            self.triangle_materials.reserve(m.indices.len() / 3);
             for (k, p) in m.positions.chunks_exact(3).enumerate() {
                 let mut v = Vec3::new(p[0], p[1], p[2]);
                 if !v.is_finite() {
@@ -1311,4 +1356,68 @@ fn unknown_mtl_statements(path: &Path, text: &str) -> Vec<Warning> {
         }
     }
     warnings
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// More meshes than one parallel batch holds, mesh k a triangle at x = k.
+    const MESHES: usize = 11;
+
+    fn write_scene(dir: &Path, broken: &[(usize, &str)]) -> PathBuf {
+        let mut toml = String::from(
+            "[[camera]]\nname = \"c\"\nposition = [0.0, 0.0, 5.0]\nlook_at = [0.0, 0.0, 0.0]\nup = [0.0, 1.0, 0.0]\nfov = 40.0\n",
+        );
+        for k in 0..MESHES {
+            let name = format!("m{k}.obj");
+            let text = match broken.iter().find(|(i, _)| *i == k) {
+                Some((_, text)) => text.to_string(),
+                None => format!("v {k} 0 0\nv {k} 1 0\nv {k} 0 1\nf 1 2 3\n"),
+            };
+            if !text.is_empty() {
+                std::fs::write(dir.join(&name), text).unwrap();
+            }
+            toml += &format!("[[mesh]]\nfile = \"{name}\"\n");
+        }
+        let path = dir.join("scene.toml");
+        std::fs::write(&path, toml).unwrap();
+        path
+    }
+
+    fn options() -> LoadOptions {
+        LoadOptions {
+            accel: AccelKind::default_kind(),
+            lenient: false,
+            shading_normals: true,
+        }
+    }
+
+    #[test]
+    fn meshes_read_in_parallel_join_in_file_order() {
+        let dir = tempfile::tempdir().unwrap();
+        let parts = load_parts(&write_scene(dir.path(), &[]), &options()).unwrap();
+        let xs: Vec<f32> = parts
+            .geometry
+            .triangles
+            .iter()
+            .map(|t| parts.geometry.positions[t[0] as usize].x)
+            .collect();
+        assert_eq!(xs, (0..MESHES).map(|k| k as f32).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn the_first_broken_mesh_in_file_order_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        // mesh[3]'s file is missing (an empty text writes no file), mesh[8]'s face is short.
+        let scene = write_scene(dir.path(), &[(3, ""), (8, "v 0 0 0\nf 1 1\n")]);
+        let message = load_parts(&scene, &options()).err().unwrap().to_string();
+        assert!(message.contains("mesh[3]"), "{message}");
+        let scene = write_scene(dir.path(), &[(3, "v 0 0 0\nf 1 1\n"), (8, "")]);
+        let message = load_parts(&scene, &options()).err().unwrap().to_string();
+        assert!(
+            message.contains("m3.obj") && message.contains("line 2"),
+            "{message}"
+        );
+    }
 }

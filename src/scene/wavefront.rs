@@ -34,6 +34,8 @@ pub fn check_obj(path: &Path, text: &str) -> Result<ObjFacts, SceneError> {
     let mut usemtl: Vec<(String, usize)> = Vec::new();
     // The largest positive index of each kind, checked at the end (OBJ allows forward use).
     let mut largest = [(0usize, 0usize); 3];
+    // The words after the keyword, one list for all lines (a large mesh has millions).
+    let mut rest: Vec<&str> = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let number = i + 1;
         let fail = |message: String| {
@@ -48,14 +50,15 @@ pub fn check_obj(path: &Path, text: &str) -> Result<ObjFacts, SceneError> {
         let Some(keyword) = words.next() else {
             continue;
         };
-        let rest: Vec<&str> = words.collect();
-        let numbers = |n: usize| -> Option<Vec<f32>> {
-            let values: Vec<f32> = rest
-                .iter()
-                .take(n)
-                .map(|w| w.parse::<f32>().ok().filter(|x| x.is_finite()))
-                .collect::<Option<_>>()?;
-            (values.len() == n).then_some(values)
+        rest.clear();
+        rest.extend(words);
+        // The first `n` (at most 4) words as finite numbers.
+        let numbers = |n: usize| -> Option<[f32; 4]> {
+            let mut values = [0.0; 4];
+            for (value, word) in values.iter_mut().zip(rest.get(..n)?) {
+                *value = word.parse::<f32>().ok().filter(|x| x.is_finite())?;
+            }
+            Some(values)
         };
         match keyword {
             "v" => {
@@ -89,11 +92,12 @@ pub fn check_obj(path: &Path, text: &str) -> Result<ObjFacts, SceneError> {
                     ));
                 }
                 for corner in &rest {
-                    let parts: Vec<&str> = corner.split('/').collect();
-                    if parts.len() > 3 || parts[0].is_empty() {
+                    let mut split = corner.split('/');
+                    let parts = [split.next(), split.next(), split.next()];
+                    if split.next().is_some() || parts[0].is_none_or(str::is_empty) {
                         return fail(format!("'{corner}' is not v, v/vt, v//vn or v/vt/vn"));
                     }
-                    for (kind, part) in parts.iter().enumerate() {
+                    for (kind, part) in parts.into_iter().flatten().enumerate() {
                         if part.is_empty() {
                             continue;
                         }
