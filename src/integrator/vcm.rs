@@ -99,11 +99,6 @@ impl Modes {
         }
     }
 
-    /// Whether a surface with this BSDF is glossy by `upg-hybrid`'s rule (never without it).
-    fn is_glossy(&self, bsdf: &Bsdf) -> bool {
-        self.rule.is_some_and(|rule| rule.is_glossy(bsdf))
-    }
-
     /// Where the light sub-paths of infinite lights start: where no eye vertex connects to
     /// them, every vertex that reaches the scene is worth its cost, and the box's silhouette
     /// wastes fewer sub-paths than the bounding sphere's disc (`light/bounds.rs`).
@@ -533,7 +528,7 @@ impl<'a> VertexCm<'a> {
             state.pending = state.pending.with_own(own);
         }
         state.prev_surface = !s.delta;
-        state.prev_glossy = !s.delta && self.modes.is_glossy(bsdf);
+        state.prev_glossy = !s.delta && hybrid::glossy(self.modes.rule, bsdf);
         if !s.delta {
             state.specular = false;
         }
@@ -855,7 +850,7 @@ impl<'a> VertexCm<'a> {
         let gather = self.modes.gather;
         let light_behind =
             Neighbour::towards_light(lv.path_length, lv.after_surface).glossy_if(lv.after_glossy);
-        let eye_behind = Neighbour::Surface.glossy_if(self.modes.is_glossy(&light_bsdf));
+        let eye_behind = Neighbour::Surface.glossy_if(hybrid::glossy(self.modes.rule, &light_bsdf));
         let light_here = gather.merge_at(light_behind, Neighbour::Surface);
         let eye_here = gather.merge_at(eye_behind, Neighbour::surface_if(state.prev_surface));
         let light_eta = w.end_eta(
@@ -1016,8 +1011,8 @@ impl<'a> VertexCm<'a> {
                 break;
             };
             if self.modes.gather == Gather::Hybrid {
-                let reached =
-                    Neighbour::surface_if(!bsdf.is_delta()).glossy_if(self.modes.is_glossy(&bsdf));
+                let reached = Neighbour::surface_if(!bsdf.is_delta())
+                    .glossy_if(hybrid::glossy(self.modes.rule, &bsdf));
                 hybrid::decide(&w, &mut state.mis, &mut state.pending, reached);
             } else {
                 state

@@ -70,6 +70,12 @@ impl Rule {
     }
 }
 
+/// Whether `rule` (`upg-hybrid`'s; `None` for every other technique, which never calls a
+/// surface glossy) takes a surface with this BSDF as glossy.
+pub fn glossy(rule: Option<Rule>, bsdf: &Bsdf) -> bool {
+    rule.is_some_and(|rule| rule.is_glossy(bsdf))
+}
+
 /// A material's roughness as a microfacet alpha (0 smooth, 1 diffuse): the least over its
 /// non-delta lobes, since one narrow lobe is enough to make the explicit connection spike.
 /// Phong's exponent n maps to alpha = sqrt(2 / (n + 2)) (Walter et al. 2007's Beckmann

@@ -12,7 +12,7 @@ use super::super::mis::{Gather, Neighbour, Side, VcmVertex, VcmWeights, VmHere};
 use super::super::subpath::{EyeVertex, LightVertex, PendingMis, SubPath};
 use super::super::IterationStats;
 use super::acceptance::{AngularBound, Estimator, Outcome, StoredVerticesOnly, TentativeTracer};
-use super::hybrid::Rule;
+use super::hybrid::{self, Rule};
 use super::{Deferred, UpgCounters};
 use crate::accel::Ray;
 use crate::bsdf::Bsdf;
@@ -185,7 +185,7 @@ impl<'s> UpgMerges<'s> {
             };
             // The eye sub-path's quantities as they would be at the light vertex, whose
             // glossiness decides the side of a merge at the previous eye vertex.
-            let photon_side = Neighbour::Surface.glossy_if(self.is_glossy(&p_bsdf));
+            let photon_side = Neighbour::Surface.glossy_if(hybrid::glossy(self.rule, &p_bsdf));
             let merge_at_prev = self
                 .gather
                 .merge_at(photon_side, Neighbour::surface_if(prev.prev_surface));
@@ -221,11 +221,6 @@ impl<'s> UpgMerges<'s> {
         let sum = self.estimate_from(Side::Camera, tentative, stats);
         tentative.counters.camera_merges += tentative.counters.merges - before;
         sum
-    }
-
-    /// Whether a surface with this BSDF is glossy by `upg-hybrid`'s rule (never without it).
-    fn is_glossy(&self, bsdf: &Bsdf) -> bool {
-        self.rule.is_some_and(|rule| rule.is_glossy(bsdf))
     }
 
     /// The merge of a gathered light vertex through Q = `q`, its predecessor (`upg`, and
