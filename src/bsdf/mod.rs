@@ -187,6 +187,25 @@ impl Normals {
     }
 }
 
+/// What a BSDF type says of itself that shapes a [`Bsdf`]'s frame and its callers' choices.
+#[derive(Clone, Copy, Debug)]
+struct Traits {
+    delta: bool,
+    two_sided: bool,
+    anisotropic: bool,
+}
+
+impl Traits {
+    #[inline]
+    fn of(bxdf: &impl Bxdf) -> Self {
+        Traits {
+            delta: bxdf.is_delta(),
+            two_sided: bxdf.two_sided(),
+            anisotropic: bxdf.anisotropic(),
+        }
+    }
+}
+
 /// Smallest |cos| to the geometric normal that the shading-normal factor divides by; below it
 /// the factor is clamped, identically for every technique, so f stays finite.
 const MIN_GEOMETRIC_COS: f32 = 1e-6;
@@ -195,8 +214,10 @@ const MIN_GEOMETRIC_COS: f32 = 1e-6;
 #[derive(Clone, Debug)]
 pub struct Bsdf<'a> {
     kind: &'a MaterialKind,
-    /// `kind` with the albedos at this point.
-    bxdf: MaterialKind,
+    /// The albedos of `kind` at this point (its own, or its textures').
+    albedo: Albedo,
+    /// Every lobe of `kind` with `albedo` is a delta.
+    delta: bool,
     /// Local frame around the shading normal (two-sided types: flipped to the side of `wo`).
     frame: Frame,
     /// The unit geometric normal, for [`Bsdf::cos_theta`].
@@ -233,6 +254,7 @@ impl<'a> Bsdf<'a> {
     /// [`Bsdf::shaded`] on a surface whose tangent, at `azimuth` about the shading normal (the
     /// surface's dp/du made orthogonal to it: [`Azimuth::of`]), orients anisotropic types as
     /// pbrt-v4 does: their x axis, `uroughness`'s, is the tangent ([`Frame::turned`]).
+    #[inline]
     pub fn oriented(
         kind: &'a MaterialKind,
         albedo: Albedo,
@@ -251,8 +273,8 @@ impl<'a> Bsdf<'a> {
         if cos_so.abs() < 1e-6 {
             return None;
         }
-        let bxdf = kind.with_albedo(albedo);
-        let z = if bxdf.two_sided() && cos_so < 0.0 {
+        let traits = kind.traits_with(albedo);
+        let z = if traits.two_sided && cos_so < 0.0 {
             -ns
         } else {
             ns
@@ -260,14 +282,15 @@ impl<'a> Bsdf<'a> {
         // A rotation of the frame about z changes how the random numbers map to directions:
         // isotropic types, whose values do not depend on it, keep the frame they always had
         // (their images unchanged bit for bit), and only anisotropic ones take the tangent.
-        let frame = if bxdf.anisotropic() {
+        let frame = if traits.anisotropic {
             Frame::turned(ns, z, azimuth)
         } else {
             Frame::from_z(z)
         };
         Some(Bsdf {
             kind,
-            bxdf,
+            albedo,
+            delta: traits.delta,
             frame,
             ng,
             smooth,
@@ -294,7 +317,9 @@ impl<'a> Bsdf<'a> {
     /// Value and pdfs for `wi` (unit), non-delta lobes only.
     pub fn eval(&self, wi: Vec3) -> BsdfEval {
         let local = self.frame.to_local(wi);
-        let e = self.bxdf.eval(self.wo_local, local, self.mode);
+        let e = self
+            .kind
+            .eval_with(self.albedo, self.wo_local, local, self.mode);
         if self.smooth {
             BsdfEval {
                 f: e.f * self.shading_factor(wi, local),
@@ -307,7 +332,9 @@ impl<'a> Bsdf<'a> {
 
     /// Samples `wi` with the random numbers `u` (`u[0]` picks the lobe).
     pub fn sample(&self, u: [f32; 3]) -> Option<BsdfSample> {
-        let local = self.bxdf.sample(self.wo_local, u, self.mode)?;
+        let local = self
+            .kind
+            .sample_with(self.albedo, self.wo_local, u, self.mode)?;
         let wi = self.frame.to_world(local.wi);
         let f = if self.smooth {
             local.f * self.shading_factor(wi, local.wi)
@@ -322,12 +349,13 @@ impl<'a> Bsdf<'a> {
     /// for mirror and glass; [`Lobes::UNBOUNDED`] for a type whose lobes have no closed-form
     /// bound.
     pub fn lobes(&self) -> Lobes {
-        self.bxdf.lobes(self.wo_local, &self.frame)
+        self.kind
+            .lobes_with(self.albedo, self.wo_local, &self.frame)
     }
 
     /// True when every lobe is a delta (mirror, glass): no connection or merge can use it.
     pub fn is_delta(&self) -> bool {
-        self.bxdf.is_delta()
+        self.delta
     }
 
     /// `|cos|` between the geometric normal and `w`.
@@ -342,7 +370,10 @@ impl<'a> Bsdf<'a> {
     /// Probability of continuing the path at this vertex under Russian roulette: the
     /// largest albedo channel at this point, capped at 1.
     pub fn continuation_probability(&self) -> f32 {
-        self.bxdf.continuation_albedo().max_component().min(1.0)
+        self.kind
+            .continuation_albedo_with(self.albedo)
+            .max_component()
+            .min(1.0)
     }
 
     /// The material's kind, with its constant colours (the albedos here may come from

@@ -51,6 +51,80 @@ macro_rules! registry {
                 })
             }
 
+            /// What a [`super::Bsdf`] needs to know of this kind with the albedos `albedo`
+            /// before it builds its frame, from one dispatch.
+            #[inline]
+            fn traits_with(&self, albedo: $crate::bsdf::Albedo) -> $crate::bsdf::Traits {
+                match *self {
+                    $(MaterialKind::$ty { $($field),* } => {
+                        $crate::bsdf::Traits::of(&$ty { $($field),* }.with_albedo(albedo))
+                    })*
+                }
+            }
+
+            /// [`Bxdf::eval`] of this kind with the albedos `albedo`. A BSDF keeps the kind by
+            /// reference and its albedos beside it rather than a copy of the kind with them:
+            /// a kind is up to some 200 bytes, copied at every vertex, while the albedos are
+            /// put in place here at no cost a profile can see.
+            #[inline]
+            fn eval_with(
+                &self,
+                albedo: $crate::bsdf::Albedo,
+                wo: glam::Vec3,
+                wi: glam::Vec3,
+                mode: $crate::bsdf::TransportMode,
+            ) -> $crate::bsdf::BsdfEval {
+                match *self {
+                    $(MaterialKind::$ty { $($field),* } => {
+                        $ty { $($field),* }.with_albedo(albedo).eval(wo, wi, mode)
+                    })*
+                }
+            }
+
+            /// [`Bxdf::sample`] of this kind with the albedos `albedo`.
+            #[inline]
+            fn sample_with(
+                &self,
+                albedo: $crate::bsdf::Albedo,
+                wo: glam::Vec3,
+                u: [f32; 3],
+                mode: $crate::bsdf::TransportMode,
+            ) -> Option<$crate::bsdf::BsdfSample> {
+                match *self {
+                    $(MaterialKind::$ty { $($field),* } => {
+                        $ty { $($field),* }.with_albedo(albedo).sample(wo, u, mode)
+                    })*
+                }
+            }
+
+            /// [`Bxdf::continuation_albedo`] of this kind with the albedos `albedo`.
+            #[inline]
+            fn continuation_albedo_with(
+                &self,
+                albedo: $crate::bsdf::Albedo,
+            ) -> $crate::color::Rgb {
+                match *self {
+                    $(MaterialKind::$ty { $($field),* } => {
+                        $ty { $($field),* }.with_albedo(albedo).continuation_albedo()
+                    })*
+                }
+            }
+
+            /// [`Bxdf::lobes`] of this kind with the albedos `albedo`.
+            #[inline]
+            fn lobes_with(
+                &self,
+                albedo: $crate::bsdf::Albedo,
+                wo: glam::Vec3,
+                frame: &$crate::frame::Frame,
+            ) -> $crate::bsdf::Lobes {
+                match *self {
+                    $(MaterialKind::$ty { $($field),* } => {
+                        $ty { $($field),* }.with_albedo(albedo).lobes(wo, frame)
+                    })*
+                }
+            }
+
             fn build(
                 type_name: &str,
                 params: &$crate::bsdf::Params,

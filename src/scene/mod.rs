@@ -282,7 +282,17 @@ impl Scene {
 
     /// The material at the point of `hit` for the material `material` of its primitive: a
     /// mix resolved (module `mix`), any other as it is.
-    pub fn resolve(&self, mut material: u32, hit: &Hit) -> u32 {
+    #[inline]
+    pub fn resolve(&self, material: u32, hit: &Hit) -> u32 {
+        // Most materials are no mix: answered without a call, on every hit.
+        match self.mixes.get(material as usize) {
+            Some(Some(_)) => self.resolve_mix(material, hit),
+            _ => material,
+        }
+    }
+
+    /// [`Scene::resolve`] of a mix.
+    fn resolve_mix(&self, mut material: u32, hit: &Hit) -> u32 {
         for _ in 0..mix::MAX_NESTING {
             let Some(Some(m)) = self.mixes.get(material as usize) else {
                 return material;
@@ -436,6 +446,7 @@ impl Scene {
 
     /// The material's albedos at `uv`: textures where it has them (clamped so that kd + ks
     /// <= 1 per channel, which Phong needs to conserve energy), its constants elsewhere.
+    #[inline]
     pub fn albedo(&self, material: u32, uv: Vec2) -> Albedo {
         let kind = &self.material(material).kind;
         let textures = self.material_textures[material as usize];
@@ -466,6 +477,7 @@ impl Scene {
 
     /// [`Scene::bsdf`] on a surface whose tangent lies at `azimuth` about the shading normal,
     /// which orients anisotropic materials ([`Bsdf::oriented`]).
+    #[inline]
     pub fn oriented_bsdf(
         &self,
         material: u32,
@@ -480,6 +492,7 @@ impl Scene {
     }
 
     /// The BSDF at a hit, oriented by its tangent.
+    #[inline]
     pub fn bsdf_at(&self, hit: &SurfaceHit, wo: Vec3, mode: TransportMode) -> Option<Bsdf<'_>> {
         self.oriented_bsdf(hit.material, hit.normals(), hit.azimuth(), hit.uv, wo, mode)
     }
