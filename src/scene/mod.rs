@@ -163,6 +163,20 @@ pub struct Scene {
     pub inputs: Vec<PathBuf>,
     /// What the load approximated, skipped or replaced, for the caller to show.
     pub warnings: Vec<Warning>,
+    /// Parallel to `materials`: what every hit asks of its material, answered once here.
+    facts: Vec<MaterialFacts>,
+}
+
+/// What each hit asks of its material, from `materials` and `material_textures` when the
+/// scene is built.
+#[derive(Clone, Copy, Debug)]
+struct MaterialFacts {
+    /// Any texture: the hit needs its uv, and the albedos come from the texels.
+    textured: bool,
+    /// Its BSDF needs the surface's tangent.
+    anisotropic: bool,
+    /// The albedos where it has no texture.
+    albedo: Albedo,
 }
 
 /// Everything but the ray-query structure, from which [`Scene::build`] makes a scene; the
@@ -228,6 +242,16 @@ impl Scene {
                 file: parts.source.clone(),
                 source,
             })?;
+        let facts = parts
+            .materials
+            .iter()
+            .zip(&parts.material_textures)
+            .map(|(m, textures)| MaterialFacts {
+                textured: *textures != MaterialTextures::default(),
+                anisotropic: m.kind.is_anisotropic(),
+                albedo: Albedo::of(&m.kind),
+            })
+            .collect();
         Ok(Scene {
             source: parts.source,
             source_hash: parts.source_hash,
@@ -247,6 +271,7 @@ impl Scene {
             dropped_triangles: parts.dropped_triangles,
             inputs: parts.inputs,
             warnings: parts.warnings,
+            facts,
         })
     }
 
@@ -320,10 +345,9 @@ impl Scene {
         let ng = hit.ng.normalize();
         // Only textures read uv: an untextured hit skips the lookups (on a large mesh, two
         // cache misses per hit).
-        let textured =
-            |material: u32| self.material_textures[material as usize] != Default::default();
+        let textured = |material: u32| self.facts[material as usize].textured;
         // Likewise only anisotropic materials read the tangent.
-        let anisotropic = |material: u32| self.material(material).kind.is_anisotropic();
+        let anisotropic = |material: u32| self.facts[material as usize].anisotropic;
         let (material, light, ns, uv, dpdu) = match hit.primitive {
             Primitive::Triangle(i) => {
                 let material = self.resolve(self.triangle_materials[i as usize], &hit);
@@ -448,11 +472,12 @@ impl Scene {
     /// <= 1 per channel, which Phong needs to conserve energy), its constants elsewhere.
     #[inline]
     pub fn albedo(&self, material: u32, uv: Vec2) -> Albedo {
+        let facts = &self.facts[material as usize];
+        if !facts.textured {
+            return facts.albedo;
+        }
         let kind = &self.material(material).kind;
         let textures = self.material_textures[material as usize];
-        if textures == MaterialTextures::default() {
-            return Albedo::of(kind);
-        }
         let texel = |t: Option<u32>| t.map(|t| self.textures[t as usize].lookup(uv));
         Albedo {
             roughness: texel(textures.roughness).map(|c| c.r),
