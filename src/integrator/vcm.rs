@@ -823,7 +823,9 @@ impl<'a> VertexCm<'a> {
         ls.contribution(weight)
     }
 
-    /// Connects an eye vertex to a light vertex (s, t > 1; 001 eqs. 40-41).
+    /// Connects an eye vertex to a light vertex (s, t > 1; 001 eqs. 40-41), whose BSDF is
+    /// `light_bsdf` (`None` where it has none).
+    #[allow(clippy::too_many_arguments)]
     fn connect(
         &self,
         w: &VcmWeights,
@@ -831,15 +833,16 @@ impl<'a> VertexCm<'a> {
         hit: &SurfaceHit,
         bsdf: &Bsdf,
         lv: &LightVertex,
+        light_bsdf: Option<&Bsdf>,
         stats: &mut IterationStats,
     ) -> Rgb {
         if self.too_short(lv.path_length + state.path_length + 1) {
             return Rgb::BLACK;
         }
-        let Some(light_bsdf) = lv.bsdf(self.scene()) else {
+        let Some(light_bsdf) = light_bsdf else {
             return Rgb::BLACK;
         };
-        let Some(c) = Connection::new(bsdf, hit.position, &light_bsdf, lv.position) else {
+        let Some(c) = Connection::new(bsdf, hit.position, light_bsdf, lv.position) else {
             return Rgb::BLACK;
         };
         let p: ConnectionPdfs = c.eye_to_light_pdfs();
@@ -850,7 +853,7 @@ impl<'a> VertexCm<'a> {
         let gather = self.modes.gather;
         let light_behind =
             Neighbour::towards_light(lv.path_length, lv.after_surface).glossy_if(lv.after_glossy);
-        let eye_behind = Neighbour::Surface.glossy_if(hybrid::glossy(self.modes.rule, &light_bsdf));
+        let eye_behind = Neighbour::Surface.glossy_if(hybrid::glossy(self.modes.rule, light_bsdf));
         let light_here = gather.merge_at(light_behind, Neighbour::Surface);
         let eye_here = gather.merge_at(eye_behind, Neighbour::surface_if(state.prev_surface));
         let light_eta = w.end_eta(
@@ -984,6 +987,11 @@ impl<'a> VertexCm<'a> {
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
         let mut prev: Option<EyeVertex<Deferred>> = None;
+        // The BSDFs of the pixel's light vertices, each built at its first connection and kept
+        // for the eye sub-path's later vertices, as `bpt` builds each once: rebuilding them at
+        // every eye vertex (material, albedo, frame) was most of what connecting cost here
+        // beyond `bpt`.
+        let mut light_bsdfs: Vec<Option<Bsdf<'a>>> = Vec::new();
         loop {
             sampler.start_vertex(state.path_length);
             stats.rays += 1;
@@ -1030,12 +1038,20 @@ impl<'a> VertexCm<'a> {
                 if self.modes.vc {
                     color += state.throughput
                         * self.light_sampling(&w, &state, &hit, &bsdf, &mut sampler, stats);
+                    let mut index = 0;
                     let connect = |lv: &LightVertex| {
                         if lv.path_length + state.path_length + 1 > max_length {
                             return ControlFlow::Break(());
                         }
-                        color +=
-                            state.throughput * self.connect(&w, &state, &hit, &bsdf, lv, stats);
+                        // Visited in order along the sub-path: the ones before are built.
+                        while light_bsdfs.len() <= index {
+                            let stored = &light_path[light_bsdfs.len()];
+                            light_bsdfs.push(stored.bsdf(self.scene()));
+                        }
+                        let light_bsdf = light_bsdfs[index].as_ref();
+                        index += 1;
+                        color += state.throughput
+                            * self.connect(&w, &state, &hit, &bsdf, lv, light_bsdf, stats);
                         ControlFlow::Continue(())
                     };
                     if self.replays() {
