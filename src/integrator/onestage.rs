@@ -414,6 +414,7 @@ impl OneStage {
                 .map(|(t, pixels)| {
                     let mut task = Task::default();
                     let mut tentative = Tentative::new(seed, iteration);
+                    let mut light_bsdfs = Vec::new();
                     let mut light = LightPaths::default();
                     for (k, value) in pixels.iter_mut().enumerate() {
                         let pixel = first + t * EYE_TASK + k;
@@ -431,7 +432,12 @@ impl OneStage {
                             merge_vertices,
                         };
                         let mut s = IterationStats::default();
-                        let color = vcm.trace_eye_path(&pass, pixel, &mut tentative, &mut s);
+                        let color = vcm.trace_eye_path(
+                            &pass,
+                            pixel,
+                            (&mut tentative, &mut light_bsdfs),
+                            &mut s,
+                        );
                         add_sample(value, color, &mut s.dropped_samples);
                         task.stats = task.stats + s;
                     }

@@ -184,6 +184,12 @@ struct Buffers {
     one_stage: OneStage,
 }
 
+/// The BSDFs of the light vertices an eye sub-path connects to, each built at its first
+/// connection and kept for the sub-path's later vertices, as `bpt` builds each once: rebuilding
+/// them at every eye vertex (material, albedo, frame) was most of what connecting cost beyond
+/// `bpt`. Its storage is reused from pixel to pixel.
+type LightBsdfs<'s> = Vec<Option<Bsdf<'s>>>;
+
 /// What the eye sub-paths of one iteration share.
 struct EyePass<'i> {
     w: VcmWeights,
@@ -944,7 +950,7 @@ impl<'a> VertexCm<'a> {
         &self,
         pass: &EyePass,
         pixel: usize,
-        tentative: &mut Tentative<'a>,
+        (tentative, light_bsdfs): (&mut Tentative<'a>, &mut LightBsdfs<'a>),
         stats: &mut IterationStats,
     ) -> Rgb {
         // With per-pixel radii, replaced by the sub-path's own at its first non-specular
@@ -987,11 +993,7 @@ impl<'a> VertexCm<'a> {
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
         let mut prev: Option<EyeVertex<Deferred>> = None;
-        // The BSDFs of the pixel's light vertices, each built at its first connection and kept
-        // for the eye sub-path's later vertices, as `bpt` builds each once: rebuilding them at
-        // every eye vertex (material, albedo, frame) was most of what connecting cost here
-        // beyond `bpt`.
-        let mut light_bsdfs: Vec<Option<Bsdf<'a>>> = Vec::new();
+        light_bsdfs.clear();
         loop {
             sampler.start_vertex(state.path_length);
             stats.rays += 1;
@@ -1188,10 +1190,11 @@ impl Integrator for VertexCm<'_> {
             .with_max_len(EYE_TASK)
             // One list of pending UPG merges per task, its storage reused for the task's pixels.
             .map_init(
-                || Tentative::new(self.ctx.options.seed, iteration),
-                |tentative, (pixel, value)| {
+                || (Tentative::new(self.ctx.options.seed, iteration), Vec::new()),
+                |(tentative, light_bsdfs), (pixel, value)| {
                     let mut stats = IterationStats::default();
-                    let color = self.trace_eye_path(&pass, pixel, tentative, &mut stats);
+                    let scratch = (&mut *tentative, light_bsdfs);
+                    let color = self.trace_eye_path(&pass, pixel, scratch, &mut stats);
                     add_sample(value, color, &mut stats.dropped_samples);
                     (stats, tentative.take_counters())
                 },
