@@ -45,7 +45,7 @@ use crate::options::{MemoryLayout, RenderOptions, Technique};
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
-use onestage::{MergeRecords, MergeVertices, OneStage};
+use onestage::{MergeMis, MergeRecords, MergeVertices, Narrow, NarrowVertices, OneStage};
 use rayon::prelude::*;
 use std::ops::ControlFlow;
 use std::time::Duration;
@@ -176,6 +176,8 @@ struct Buffers {
     positions: Vec<Vec3>,
     /// The light vertices as a density-estimate merge reads them, in the grid's order.
     merge_vertices: Vec<MergeVertex>,
+    /// The same where the merges read fewer MIS quantities ([`Narrow`]).
+    narrow_vertices: Vec<Narrow>,
     grid: HashGrid,
     /// The bytes of the light vertices' buffers after the light pass (the grid's own left
     /// out), the most over the iterations so far.
@@ -1069,6 +1071,9 @@ impl<'a> VertexCm<'a> {
                             MergeVertices::Whole(v) => {
                                 self.merge(&w, &state, &bsdf, &hit, gathered, v)
                             }
+                            MergeVertices::Narrow(v) => {
+                                self.merge(&w, &state, &bsdf, &hit, gathered, &v)
+                            }
                             MergeVertices::Packed(v) => {
                                 self.merge(&w, &state, &bsdf, &hit, gathered, &v)
                             }
@@ -1142,6 +1147,7 @@ impl Integrator for VertexCm<'_> {
             light,
             positions,
             merge_vertices,
+            narrow_vertices,
             grid,
             peak_bytes,
             ..
@@ -1155,12 +1161,23 @@ impl Integrator for VertexCm<'_> {
         }
         let grid = self.modes.vm.then_some(&*grid);
         merge_vertices.clear();
+        narrow_vertices.clear();
+        // Per-pixel radii and the density map read every MIS quantity of a merged vertex.
+        let narrow = self.radius_pixels.is_none() && self.density.is_none();
+        let form = MergeMis::of(&w);
         if let (Some(grid), Gather::Density) = (grid, self.modes.gather) {
             let vertices = &light.vertices;
-            merge_vertices.par_extend(
-                grid.indices()
-                    .map(|i| MergeVertex::from(&vertices[i as usize])),
-            );
+            if narrow {
+                narrow_vertices.par_extend(
+                    grid.indices()
+                        .map(|i| Narrow::new(&vertices[i as usize], form)),
+                );
+            } else {
+                merge_vertices.par_extend(
+                    grid.indices()
+                        .map(|i| MergeVertex::from(&vertices[i as usize])),
+                );
+            }
         }
         let light_vertex = std::mem::size_of::<LightVertex>();
         let bytes = chunks
@@ -1170,6 +1187,7 @@ impl Integrator for VertexCm<'_> {
             + light.vertices.capacity() * light_vertex
             + positions.capacity() * std::mem::size_of::<Vec3>()
             + merge_vertices.capacity() * std::mem::size_of::<MergeVertex>()
+            + narrow_vertices.capacity() * std::mem::size_of::<Narrow>()
             + chunks
                 .iter()
                 .map(|c| c.steps.capacity() * std::mem::size_of::<MisStep>())
@@ -1182,7 +1200,14 @@ impl Integrator for VertexCm<'_> {
             iteration,
             light,
             grid,
-            merge_vertices: MergeVertices::Whole(merge_vertices),
+            merge_vertices: if narrow {
+                MergeVertices::Narrow(NarrowVertices {
+                    records: narrow_vertices,
+                    form,
+                })
+            } else {
+                MergeVertices::Whole(merge_vertices)
+            },
         };
         let (eye_stats, upg) = frame
             .par_iter_mut()
