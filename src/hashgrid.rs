@@ -485,6 +485,35 @@ impl HashGrid {
         }
     }
 
+    /// [`Self::query_slot_batches_within`] that asks `keep` about each slot as the scan finds
+    /// it, and visits only the slots it accepts, in the same order. A caller whose `keep` reads
+    /// the point's record starts that read (a cache miss, most often) while the scan goes on to
+    /// the query's other rows, rather than once all are scanned.
+    #[inline]
+    pub fn query_kept_slot_batches_within(
+        &self,
+        q: Vec3,
+        within: Within,
+        mut keep: impl FnMut(u32) -> bool,
+        mut visit: impl FnMut(&[u32]),
+    ) {
+        let mut batch = [0u32; QUERY_BATCH];
+        let mut len = 0;
+        self.query_slots_within(q, within, |slot, _| {
+            batch[len] = slot as u32;
+            // Without a branch on the answer, which waits for the record: the next slot found
+            // overwrites a rejected one.
+            len += usize::from(keep(slot as u32));
+            if len == QUERY_BATCH {
+                visit(&batch);
+                len = 0;
+            }
+        });
+        if len > 0 {
+            visit(&batch[..len]);
+        }
+    }
+
     /// [`Self::query_slot_batches`] with each point named by its index in the input, as
     /// [`Self::query`] names it.
     #[inline]

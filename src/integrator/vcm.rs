@@ -39,7 +39,7 @@ use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
-use crate::hashgrid::{kept, HashGrid, Within};
+use crate::hashgrid::{HashGrid, Within};
 use crate::light::Aim;
 use crate::options::{MemoryLayout, RenderOptions, Technique};
 use crate::sampling::Sampler;
@@ -914,12 +914,13 @@ impl<'a> VertexCm<'a> {
         let max_length = self.ctx.max_path_length();
         let mut sum = Rgb::BLACK;
         // The eye sub-path's own radius: the grid's, or with per-pixel radii another.
-        grid.query_slot_batches_within(hit.position, Within::radius(w.radius), |batch| {
-            let within_bounds = |slot: u32| {
-                let segments = vertices.path_length(slot).saturating_add(state.path_length);
-                segments <= max_length && !self.too_short(segments)
-            };
-            for slot in kept(batch, within_bounds) {
+        let within_bounds = |slot: u32| {
+            let segments = vertices.path_length(slot).saturating_add(state.path_length);
+            segments <= max_length && !self.too_short(segments)
+        };
+        let within = Within::radius(w.radius);
+        grid.query_kept_slot_batches_within(hit.position, within, within_bounds, |batch| {
+            for &slot in batch {
                 let lv = vertices.vertex(slot);
                 let eval = bsdf.eval(lv.wo);
                 if eval.f.is_black() {
