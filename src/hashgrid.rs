@@ -1246,6 +1246,32 @@ mod tests {
     }
 
     #[test]
+    fn kept_batches_match_query() {
+        let mut rng = Rng::for_sample(10, 0, 0, Stream::Eye);
+        let points = random_points(&mut rng, 20_000, 1);
+        let grid = HashGrid::build(&points, 0.1);
+        let within = Within::radius(0.1);
+        let mut longest = 0;
+        for &q in points.iter().take(200) {
+            let mut expected = Vec::new();
+            grid.query_slots(q, |slot, _| expected.push(slot as u32));
+            let keep = |slot: u32| !grid.index_of(slot as usize).is_multiple_of(3);
+            expected.retain(|&slot| keep(slot));
+            let mut found = Vec::new();
+            grid.query_kept_slot_batches_within(q, within, keep, |batch| {
+                assert!(!batch.is_empty() && batch.len() <= QUERY_BATCH);
+                found.extend_from_slice(batch);
+            });
+            longest = longest.max(expected.len());
+            assert_eq!(found, expected);
+        }
+        assert!(
+            longest > 2 * QUERY_BATCH,
+            "some queries span several batches"
+        );
+    }
+
+    #[test]
     fn simd_keys_match_integer_cells() {
         // `key_of` in float lanes against the cells of `cell` offset and clamped in integers.
         let mut rng = Rng::for_sample(8, 0, 0, Stream::Eye);
