@@ -831,17 +831,14 @@ impl<'a> VertexCm<'a> {
         ls.contribution(weight)
     }
 
-    /// Connects an eye vertex to a light vertex (s, t > 1; 001 eqs. 40-41), whose BSDF is
+    /// Connects an eye vertex to a light vertex `lv` (s, t > 1; 001 eqs. 40-41), whose BSDF is
     /// `light_bsdf` (`None` where it has none).
-    #[allow(clippy::too_many_arguments)]
     fn connect(
         &self,
         w: &VcmWeights,
         state: &SubPath,
-        hit: &SurfaceHit,
-        bsdf: &Bsdf,
-        lv: &LightVertex,
-        light_bsdf: Option<&Bsdf>,
+        (hit, bsdf): (&SurfaceHit, &Bsdf),
+        (lv, light_bsdf): (&LightVertex, Option<&Bsdf>),
         stats: &mut IterationStats,
     ) -> Rgb {
         if self.too_short(lv.path_length + state.path_length + 1) {
@@ -1056,7 +1053,7 @@ impl<'a> VertexCm<'a> {
                         let light_bsdf = light_bsdfs[index].as_ref();
                         index += 1;
                         color += state.throughput
-                            * self.connect(&w, &state, &hit, &bsdf, lv, light_bsdf, stats);
+                            * self.connect(&w, &state, (&hit, &bsdf), (lv, light_bsdf), stats);
                         ControlFlow::Continue(())
                     };
                     if self.replays() {
