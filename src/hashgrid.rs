@@ -485,6 +485,35 @@ impl HashGrid {
         }
     }
 
+    /// [`Self::query_slot_batches_within`] that asks `keep` about each slot as the scan finds
+    /// it, and visits only the slots it accepts, in the same order. A caller whose `keep` reads
+    /// the point's record starts that read (a cache miss, most often) while the scan goes on to
+    /// the query's other rows, rather than once all are scanned.
+    #[inline]
+    pub fn query_kept_slot_batches_within(
+        &self,
+        q: Vec3,
+        within: Within,
+        mut keep: impl FnMut(u32) -> bool,
+        mut visit: impl FnMut(&[u32]),
+    ) {
+        let mut batch = [0u32; QUERY_BATCH];
+        let mut len = 0;
+        self.query_slots_within(q, within, |slot, _| {
+            batch[len] = slot as u32;
+            // Without a branch on the answer, which waits for the record: the next slot found
+            // overwrites a rejected one.
+            len += usize::from(keep(slot as u32));
+            if len == QUERY_BATCH {
+                visit(&batch);
+                len = 0;
+            }
+        });
+        if len > 0 {
+            visit(&batch[..len]);
+        }
+    }
+
     /// [`Self::query_slot_batches`] with each point named by its index in the input, as
     /// [`Self::query`] names it.
     #[inline]
@@ -1209,6 +1238,32 @@ mod tests {
             assert_eq!(batched, expected);
             expected.retain(|i| i % 2 == 1);
             assert_eq!(odd, expected);
+        }
+        assert!(
+            longest > 2 * QUERY_BATCH,
+            "some queries span several batches"
+        );
+    }
+
+    #[test]
+    fn kept_batches_match_query() {
+        let mut rng = Rng::for_sample(10, 0, 0, Stream::Eye);
+        let points = random_points(&mut rng, 20_000, 1);
+        let grid = HashGrid::build(&points, 0.1);
+        let within = Within::radius(0.1);
+        let mut longest = 0;
+        for &q in points.iter().take(200) {
+            let mut expected = Vec::new();
+            grid.query_slots(q, |slot, _| expected.push(slot as u32));
+            let keep = |slot: u32| !grid.index_of(slot as usize).is_multiple_of(3);
+            expected.retain(|&slot| keep(slot));
+            let mut found = Vec::new();
+            grid.query_kept_slot_batches_within(q, within, keep, |batch| {
+                assert!(!batch.is_empty() && batch.len() <= QUERY_BATCH);
+                found.extend_from_slice(batch);
+            });
+            longest = longest.max(expected.len());
+            assert_eq!(found, expected);
         }
         assert!(
             longest > 2 * QUERY_BATCH,

@@ -39,13 +39,13 @@ use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
-use crate::hashgrid::{kept, HashGrid, Within};
+use crate::hashgrid::{HashGrid, Within};
 use crate::light::Aim;
 use crate::options::{MemoryLayout, RenderOptions, Technique};
 use crate::sampling::Sampler;
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
-use onestage::{MergeRecords, MergeVertices, OneStage};
+use onestage::{MergeMis, MergeRecords, MergeVertices, Narrow, NarrowVertices, OneStage};
 use rayon::prelude::*;
 use std::ops::ControlFlow;
 use std::time::Duration;
@@ -176,6 +176,8 @@ struct Buffers {
     positions: Vec<Vec3>,
     /// The light vertices as a density-estimate merge reads them, in the grid's order.
     merge_vertices: Vec<MergeVertex>,
+    /// The same where the merges read fewer MIS quantities ([`Narrow`]).
+    narrow_vertices: Vec<Narrow>,
     grid: HashGrid,
     /// The bytes of the light vertices' buffers after the light pass (the grid's own left
     /// out), the most over the iterations so far.
@@ -183,6 +185,12 @@ struct Buffers {
     /// The light vertices of `memory = one-stage`, which uses none of the above.
     one_stage: OneStage,
 }
+
+/// The BSDFs of the light vertices an eye sub-path connects to, each built at its first
+/// connection and kept for the sub-path's later vertices, as `bpt` builds each once: rebuilding
+/// them at every eye vertex (material, albedo, frame) was most of what connecting cost beyond
+/// `bpt`. Its storage is reused from pixel to pixel.
+type LightBsdfs<'s> = Vec<Option<Bsdf<'s>>>;
 
 /// What the eye sub-paths of one iteration share.
 struct EyePass<'i> {
@@ -823,23 +831,23 @@ impl<'a> VertexCm<'a> {
         ls.contribution(weight)
     }
 
-    /// Connects an eye vertex to a light vertex (s, t > 1; 001 eqs. 40-41).
+    /// Connects an eye vertex to a light vertex `lv` (s, t > 1; 001 eqs. 40-41), whose BSDF is
+    /// `light_bsdf` (`None` where it has none).
     fn connect(
         &self,
         w: &VcmWeights,
         state: &SubPath,
-        hit: &SurfaceHit,
-        bsdf: &Bsdf,
-        lv: &LightVertex,
+        (hit, bsdf): (&SurfaceHit, &Bsdf),
+        (lv, light_bsdf): (&LightVertex, Option<&Bsdf>),
         stats: &mut IterationStats,
     ) -> Rgb {
         if self.too_short(lv.path_length + state.path_length + 1) {
             return Rgb::BLACK;
         }
-        let Some(light_bsdf) = lv.bsdf(self.scene()) else {
+        let Some(light_bsdf) = light_bsdf else {
             return Rgb::BLACK;
         };
-        let Some(c) = Connection::new(bsdf, hit.position, &light_bsdf, lv.position) else {
+        let Some(c) = Connection::new(bsdf, hit.position, light_bsdf, lv.position) else {
             return Rgb::BLACK;
         };
         let p: ConnectionPdfs = c.eye_to_light_pdfs();
@@ -850,7 +858,7 @@ impl<'a> VertexCm<'a> {
         let gather = self.modes.gather;
         let light_behind =
             Neighbour::towards_light(lv.path_length, lv.after_surface).glossy_if(lv.after_glossy);
-        let eye_behind = Neighbour::Surface.glossy_if(hybrid::glossy(self.modes.rule, &light_bsdf));
+        let eye_behind = Neighbour::Surface.glossy_if(hybrid::glossy(self.modes.rule, light_bsdf));
         let light_here = gather.merge_at(light_behind, Neighbour::Surface);
         let eye_here = gather.merge_at(eye_behind, Neighbour::surface_if(state.prev_surface));
         let light_eta = w.end_eta(
@@ -903,12 +911,13 @@ impl<'a> VertexCm<'a> {
         let max_length = self.ctx.max_path_length();
         let mut sum = Rgb::BLACK;
         // The eye sub-path's own radius: the grid's, or with per-pixel radii another.
-        grid.query_slot_batches_within(hit.position, Within::radius(w.radius), |batch| {
-            let within_bounds = |slot: u32| {
-                let segments = vertices.path_length(slot).saturating_add(state.path_length);
-                segments <= max_length && !self.too_short(segments)
-            };
-            for slot in kept(batch, within_bounds) {
+        let within_bounds = |slot: u32| {
+            let segments = vertices.path_length(slot).saturating_add(state.path_length);
+            segments <= max_length && !self.too_short(segments)
+        };
+        let within = Within::radius(w.radius);
+        grid.query_kept_slot_batches_within(hit.position, within, within_bounds, |batch| {
+            for &slot in batch {
                 let lv = vertices.vertex(slot);
                 let eval = bsdf.eval(lv.wo);
                 if eval.f.is_black() {
@@ -941,7 +950,7 @@ impl<'a> VertexCm<'a> {
         &self,
         pass: &EyePass,
         pixel: usize,
-        tentative: &mut Tentative<'a>,
+        (tentative, light_bsdfs): (&mut Tentative<'a>, &mut LightBsdfs<'a>),
         stats: &mut IterationStats,
     ) -> Rgb {
         // With per-pixel radii, replaced by the sub-path's own at its first non-specular
@@ -984,6 +993,7 @@ impl<'a> VertexCm<'a> {
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
         let mut prev: Option<EyeVertex<Deferred>> = None;
+        light_bsdfs.clear();
         loop {
             sampler.start_vertex(state.path_length);
             stats.rays += 1;
@@ -1030,12 +1040,20 @@ impl<'a> VertexCm<'a> {
                 if self.modes.vc {
                     color += state.throughput
                         * self.light_sampling(&w, &state, &hit, &bsdf, &mut sampler, stats);
+                    let mut index = 0;
                     let connect = |lv: &LightVertex| {
                         if lv.path_length + state.path_length + 1 > max_length {
                             return ControlFlow::Break(());
                         }
-                        color +=
-                            state.throughput * self.connect(&w, &state, &hit, &bsdf, lv, stats);
+                        // Visited in order along the sub-path: the ones before are built.
+                        while light_bsdfs.len() <= index {
+                            let stored = &light_path[light_bsdfs.len()];
+                            light_bsdfs.push(stored.bsdf(self.scene()));
+                        }
+                        let light_bsdf = light_bsdfs[index].as_ref();
+                        index += 1;
+                        color += state.throughput
+                            * self.connect(&w, &state, (&hit, &bsdf), (lv, light_bsdf), stats);
                         ControlFlow::Continue(())
                     };
                     if self.replays() {
@@ -1050,6 +1068,9 @@ impl<'a> VertexCm<'a> {
                         let merged = match pass.merge_vertices {
                             MergeVertices::Whole(v) => {
                                 self.merge(&w, &state, &bsdf, &hit, gathered, v)
+                            }
+                            MergeVertices::Narrow(v) => {
+                                self.merge(&w, &state, &bsdf, &hit, gathered, &v)
                             }
                             MergeVertices::Packed(v) => {
                                 self.merge(&w, &state, &bsdf, &hit, gathered, &v)
@@ -1124,6 +1145,7 @@ impl Integrator for VertexCm<'_> {
             light,
             positions,
             merge_vertices,
+            narrow_vertices,
             grid,
             peak_bytes,
             ..
@@ -1137,12 +1159,23 @@ impl Integrator for VertexCm<'_> {
         }
         let grid = self.modes.vm.then_some(&*grid);
         merge_vertices.clear();
+        narrow_vertices.clear();
+        // Per-pixel radii and the density map read every MIS quantity of a merged vertex.
+        let narrow = self.radius_pixels.is_none() && self.density.is_none();
+        let form = MergeMis::of(&w);
         if let (Some(grid), Gather::Density) = (grid, self.modes.gather) {
             let vertices = &light.vertices;
-            merge_vertices.par_extend(
-                grid.indices()
-                    .map(|i| MergeVertex::from(&vertices[i as usize])),
-            );
+            if narrow {
+                narrow_vertices.par_extend(
+                    grid.indices()
+                        .map(|i| Narrow::new(&vertices[i as usize], form)),
+                );
+            } else {
+                merge_vertices.par_extend(
+                    grid.indices()
+                        .map(|i| MergeVertex::from(&vertices[i as usize])),
+                );
+            }
         }
         let light_vertex = std::mem::size_of::<LightVertex>();
         let bytes = chunks
@@ -1152,6 +1185,7 @@ impl Integrator for VertexCm<'_> {
             + light.vertices.capacity() * light_vertex
             + positions.capacity() * std::mem::size_of::<Vec3>()
             + merge_vertices.capacity() * std::mem::size_of::<MergeVertex>()
+            + narrow_vertices.capacity() * std::mem::size_of::<Narrow>()
             + chunks
                 .iter()
                 .map(|c| c.steps.capacity() * std::mem::size_of::<MisStep>())
@@ -1164,7 +1198,14 @@ impl Integrator for VertexCm<'_> {
             iteration,
             light,
             grid,
-            merge_vertices: MergeVertices::Whole(merge_vertices),
+            merge_vertices: if narrow {
+                MergeVertices::Narrow(NarrowVertices {
+                    records: narrow_vertices,
+                    form,
+                })
+            } else {
+                MergeVertices::Whole(merge_vertices)
+            },
         };
         let (eye_stats, upg) = frame
             .par_iter_mut()
@@ -1172,10 +1213,11 @@ impl Integrator for VertexCm<'_> {
             .with_max_len(EYE_TASK)
             // One list of pending UPG merges per task, its storage reused for the task's pixels.
             .map_init(
-                || Tentative::new(self.ctx.options.seed, iteration),
-                |tentative, (pixel, value)| {
+                || (Tentative::new(self.ctx.options.seed, iteration), Vec::new()),
+                |(tentative, light_bsdfs), (pixel, value)| {
                     let mut stats = IterationStats::default();
-                    let color = self.trace_eye_path(&pass, pixel, tentative, &mut stats);
+                    let scratch = (&mut *tentative, light_bsdfs);
+                    let color = self.trace_eye_path(&pass, pixel, scratch, &mut stats);
                     add_sample(value, color, &mut stats.dropped_samples);
                     (stats, tentative.take_counters())
                 },
