@@ -5,6 +5,7 @@
 
 use super::fresnel;
 use super::params::{number, BsdfError, ParamRange, ParamReader, ParamSpec, Params};
+use crate::sampling;
 use glam::{DVec3, Vec3};
 use std::f32::consts::PI;
 
@@ -138,8 +139,7 @@ impl VisibleNormals {
     /// onto the visible part.
     pub fn point(&self, u: [f32; 2]) -> [f32; 2] {
         let r = u[0].sqrt();
-        let phi = 2.0 * PI * u[1];
-        let (sin_phi, cos_phi) = phi.sin_cos();
+        let (sin_phi, cos_phi) = sampling::sin_cos_turn(u[1]);
         let px = r * cos_phi;
         let h = (1.0 - px * px).max(0.0).sqrt();
         let s = 0.5 * (1.0 + self.wh.z);
