@@ -43,7 +43,7 @@
 
 use crate::color::Rgb;
 use crate::frame::{Azimuth, Frame};
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 mod bxdf;
 pub mod fresnel;
@@ -315,7 +315,16 @@ impl<'a> Bsdf<'a> {
     }
 
     /// Value and pdfs for `wi` (unit), non-delta lobes only.
+    #[inline]
     pub fn eval(&self, wi: Vec3) -> BsdfEval {
+        self.eval_packed(wi.into())
+    }
+
+    /// [`Self::eval`] with `wi` in one 16-byte vector. A 12-byte argument goes to the callee
+    /// through memory as two stores (8 and 4 bytes) that its loads straddle, which stalls every
+    /// call until the stores retire; one 16-byte store is forwarded to any load within it.
+    fn eval_packed(&self, wi: Vec3A) -> BsdfEval {
+        let wi = Vec3::from(wi);
         let local = self.frame.to_local(wi);
         let e = self
             .kind
@@ -331,7 +340,15 @@ impl<'a> Bsdf<'a> {
     }
 
     /// Samples `wi` with the random numbers `u` (`u[0]` picks the lobe).
+    #[inline]
     pub fn sample(&self, u: [f32; 3]) -> Option<BsdfSample> {
+        self.sample_packed(Vec3A::from_array(u))
+    }
+
+    /// [`Self::sample`] with `u` in one 16-byte vector, as [`Self::eval_packed`] has its
+    /// direction.
+    fn sample_packed(&self, u: Vec3A) -> Option<BsdfSample> {
+        let u = u.to_array();
         let local = self
             .kind
             .sample_with(self.albedo, self.wo_local, u, self.mode)?;
