@@ -472,20 +472,31 @@ struct RawHit {
 
 fn rtc_ray(ray: &Ray) -> sys::RTCRay {
     sys::RTCRay {
-        org_x: ray.origin.x,
-        org_y: ray.origin.y,
-        org_z: ray.origin.z,
-        tnear: ray.tmin,
-        dir_x: ray.dir.x,
-        dir_y: ray.dir.y,
-        dir_z: ray.dir.z,
+        org_x: narrow(&ray.origin.x),
+        org_y: narrow(&ray.origin.y),
+        org_z: narrow(&ray.origin.z),
+        tnear: narrow(&ray.tmin),
+        dir_x: narrow(&ray.dir.x),
+        dir_y: narrow(&ray.dir.y),
+        dir_z: narrow(&ray.dir.z),
         time: 0.0,
-        tfar: ray.tmax,
+        tfar: narrow(&ray.tmax),
         // Debian's Embree is built with ray masks: a zero mask misses everything.
         mask: u32::MAX,
         id: 0,
         flags: 0,
     }
+}
+
+/// `*x` read by a load of its own width. The ray and Embree's answer were stored moments before
+/// they are read, field by field or in wider pieces; a load the compiler merges across two
+/// neighbouring fields spans two stores, cannot take its value from the store buffer, and waits
+/// for both to reach the cache (a store-forwarding stall, on every ray). A load within one
+/// store is forwarded.
+#[inline(always)]
+fn narrow<T: Copy>(x: &T) -> T {
+    // SAFETY: `x` is a reference: the pointer is valid, aligned and points to an initialised T.
+    unsafe { std::ptr::read_volatile(x) }
 }
 
 fn empty_hit() -> sys::RTCHit {
@@ -849,12 +860,12 @@ impl Accel for EmbreeScene {
         }
         self.hit(
             RawHit {
-                geom_id: h.geomID,
-                prim_id: h.primID,
-                t: rayhit.ray.tfar,
-                u: h.u,
-                v: h.v,
-                ng: Vec3::new(h.Ng_x, h.Ng_y, h.Ng_z),
+                geom_id: narrow(&h.geomID),
+                prim_id: narrow(&h.primID),
+                t: narrow(&rayhit.ray.tfar),
+                u: narrow(&h.u),
+                v: narrow(&h.v),
+                ng: Vec3::new(narrow(&h.Ng_x), narrow(&h.Ng_y), narrow(&h.Ng_z)),
             },
             ray,
         )

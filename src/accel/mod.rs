@@ -17,15 +17,11 @@ pub mod embree;
 
 /// A ray segment `origin + t * dir` for `t` in `[tmin, tmax]`. `dir` need not be normalised,
 /// `t` is measured in units of `dir`.
-///
-/// Laid out as Embree's ray begins (origin, tmin, direction, then tmax in place of its time): a
-/// copy of the ray moves in two 16-byte halves, each of which the reads of the query take whole.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C)]
 pub struct Ray {
     pub origin: Vec3,
-    pub tmin: f32,
     pub dir: Vec3,
+    pub tmin: f32,
     pub tmax: f32,
 }
 

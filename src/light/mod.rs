@@ -213,7 +213,7 @@ impl Light {
     }
 
     /// A uniform point on an area light.
-    #[inline]
+    #[inline(always)]
     fn area_point(&self, u: [f32; 2]) -> Option<AreaPoint> {
         match *self {
             Light::Triangle {
