@@ -93,8 +93,10 @@ impl Sampler {
     }
 
     /// A choice (`[0]`, such as a BSDF's lobe or a light) and a 2D point (`[1]`, `[2]`), as
-    /// a BSDF sample or a light sample takes them.
-    #[inline]
+    /// a BSDF sample or a light sample takes them. Always inlined: a call returns the three
+    /// numbers through memory in pieces that the caller's wider loads straddle, a
+    /// store-forwarding stall at every vertex.
+    #[inline(always)]
     pub fn next_choice_2d(&mut self) -> [f32; 3] {
         match self {
             Sampler::Sobol(s) => s.next_choice_2d(),
