@@ -152,11 +152,12 @@ mod tests {
     /// wedges of the disk map.
     #[test]
     fn sin_cos_match_libm_to_a_few_ulps() {
+        use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, TAU};
         let n = 1 << 16;
         for k in 0..=n {
             let t = k as f32 / n as f32;
             let (sin, cos) = sin_cos_turn(t);
-            let angle = std::f64::consts::TAU * t as f64;
+            let angle = TAU * t as f64;
             assert!((sin as f64 - angle.sin()).abs() < 3e-7, "sin at t = {t}");
             assert!((cos as f64 - angle.cos()).abs() < 3e-7, "cos at t = {t}");
         }
@@ -166,9 +167,9 @@ mod tests {
                 let d = concentric_disk(u);
                 let (a, b) = (2.0 * u[0] as f64 - 1.0, 2.0 * u[1] as f64 - 1.0);
                 let (r, phi) = if a * a > b * b {
-                    (a, std::f64::consts::FRAC_PI_4 * (b / a))
+                    (a, FRAC_PI_4 * (b / a))
                 } else if b != 0.0 {
-                    (b, std::f64::consts::FRAC_PI_2 - std::f64::consts::FRAC_PI_4 * (a / b))
+                    (b, FRAC_PI_2 - FRAC_PI_4 * (a / b))
                 } else {
                     (0.0, 0.0)
                 };
