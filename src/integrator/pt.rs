@@ -3,7 +3,7 @@
 
 use super::connection::LightSample;
 use super::{Integrator, IterationStats, RenderContext};
-use crate::accel::Ray;
+use crate::accel::{Ray, PACKET};
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
@@ -31,8 +31,14 @@ impl<'a> PathTracer<'a> {
         a / (a + mis_power(other, beta))
     }
 
-    /// Radiance arriving at the camera through raster point `(x, y)`, and the rays traced.
-    fn radiance(&self, mut ray: Ray, sampler: &mut Sampler) -> (Rgb, u64) {
+    /// Radiance arriving at the camera along the camera ray `ray`, whose closest hit `first`
+    /// has been found already, and the rays traced (the camera ray's included).
+    fn radiance(
+        &self,
+        mut ray: Ray,
+        first: Option<SurfaceHit>,
+        sampler: &mut Sampler,
+    ) -> (Rgb, u64) {
         let scene = self.ctx.scene;
         let max_length = self.ctx.max_path_length();
         let roulette = self.ctx.options.roulette;
@@ -40,7 +46,8 @@ impl<'a> PathTracer<'a> {
         let min_length = self.ctx.options.min_path_length;
         let mut radiance = Rgb::BLACK;
         let mut throughput = Rgb::WHITE;
-        let mut rays = 0u64;
+        let mut rays = 1u64;
+        let mut found = first;
         // pdf (solid angle) of the BSDF sample that produced `ray`, and whether it was a delta
         // lobe (or the camera), in which case light sampling could not have produced it.
         let mut last_pdf_w = 1.0f32;
@@ -49,8 +56,7 @@ impl<'a> PathTracer<'a> {
         let mut length = 1u32;
         loop {
             sampler.start_vertex(length);
-            rays += 1;
-            let Some(hit) = scene.intersect(&ray) else {
+            let Some(hit) = found else {
                 if let Some(received) = scene
                     .lights
                     .background(ray.dir, PT_AIM)
@@ -99,6 +105,8 @@ impl<'a> PathTracer<'a> {
             last_delta = sample.delta;
             ray = Ray::spawn(hit.position, hit.ng, sample.wi);
             length += 1;
+            rays += 1;
+            found = scene.intersect(&ray);
         }
         (radiance, rays)
     }
@@ -146,6 +154,7 @@ impl Integrator for PathTracer<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
         let camera = &self.ctx.camera;
         let width = camera.width as usize;
+        let scene = self.ctx.scene;
         let (seed, kind) = (self.ctx.options.seed, self.ctx.options.sampler);
         let this = &*self;
         frame
@@ -155,14 +164,28 @@ impl Integrator for PathTracer<'_> {
             .with_max_len(1)
             .map(|(y, row)| {
                 let mut stats = IterationStats::default();
-                for (x, pixel) in row.iter_mut().enumerate() {
-                    let index = (y * width + x) as u64;
-                    let mut sampler = Sampler::eye(kind, seed, iteration, index);
-                    let [jx, jy] = sampler.next_2d();
-                    let ray = camera.generate_ray(x as f32 + jx, y as f32 + jy);
-                    let (radiance, rays) = this.radiance(ray, &mut sampler);
-                    stats.rays += rays;
-                    add_sample(pixel, radiance, &mut stats.dropped_samples);
+                // The camera rays of neighbouring pixels start together and part little: Embree
+                // traces them as packets, for less than as many single rays cost. Each pixel
+                // keeps its own sampler, so the images are those of one ray at a time.
+                for (packet, pixels) in row.chunks_mut(PACKET).enumerate() {
+                    let x0 = packet * PACKET;
+                    let mut samplers: [Sampler; PACKET] = std::array::from_fn(|i| {
+                        let x = x0 + i.min(pixels.len() - 1);
+                        Sampler::eye(kind, seed, iteration, (y * width + x) as u64)
+                    });
+                    let rays: [Ray; PACKET] = std::array::from_fn(|i| {
+                        let [jx, jy] = samplers[i].next_2d();
+                        camera.generate_ray((x0 + i) as f32 + jx, y as f32 + jy)
+                    });
+                    let mut hits = [None; PACKET];
+                    let active = u8::MAX >> (PACKET - pixels.len());
+                    scene.intersect8(&rays, active, &mut hits);
+                    for (i, pixel) in pixels.iter_mut().enumerate() {
+                        let first = hits[i].map(|hit| scene.surface_hit(&rays[i], hit));
+                        let (radiance, rays) = this.radiance(rays[i], first, &mut samplers[i]);
+                        stats.rays += rays;
+                        add_sample(pixel, radiance, &mut stats.dropped_samples);
+                    }
                 }
                 stats
             })
