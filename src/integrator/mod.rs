@@ -12,6 +12,7 @@ use crate::scene::{Camera, Scene};
 use std::time::Duration;
 
 pub mod bpt;
+pub mod camera_rays;
 pub mod connection;
 pub mod density;
 pub mod mis;

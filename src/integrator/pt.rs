@@ -1,6 +1,7 @@
 //! Path tracing with next-event estimation, combined with BSDF sampling by multiple importance
 //! sampling (power heuristic with exponent `beta`; 000 sec. 2.2, Veach's thesis ch. 9).
 
+use super::camera_rays::CameraRays;
 use super::connection::LightSample;
 use super::{Integrator, IterationStats, RenderContext};
 use crate::accel::{Ray, PACKET};
@@ -152,10 +153,7 @@ impl<'a> PathTracer<'a> {
 
 impl Integrator for PathTracer<'_> {
     fn render_iteration(&mut self, iteration: u64, frame: &mut [Rgb]) -> IterationStats {
-        let camera = &self.ctx.camera;
-        let width = camera.width as usize;
-        let scene = self.ctx.scene;
-        let (seed, kind) = (self.ctx.options.seed, self.ctx.options.sampler);
+        let width = self.ctx.camera.width as usize;
         let this = &*self;
         frame
             .par_chunks_mut(width)
@@ -164,25 +162,15 @@ impl Integrator for PathTracer<'_> {
             .with_max_len(1)
             .map(|(y, row)| {
                 let mut stats = IterationStats::default();
-                // The camera rays of neighbouring pixels start together and part little: Embree
-                // traces them as packets, for less than as many single rays cost. Each pixel
-                // keeps its own sampler, so the images are those of one ray at a time.
                 for (packet, pixels) in row.chunks_mut(PACKET).enumerate() {
-                    let x0 = packet * PACKET;
-                    let mut samplers: [Sampler; PACKET] = std::array::from_fn(|i| {
-                        let x = x0 + i.min(pixels.len() - 1);
-                        Sampler::eye(kind, seed, iteration, (y * width + x) as u64)
-                    });
-                    let rays: [Ray; PACKET] = std::array::from_fn(|i| {
-                        let [jx, jy] = samplers[i].next_2d();
-                        camera.generate_ray((x0 + i) as f32 + jx, y as f32 + jy)
-                    });
-                    let mut hits = [None; PACKET];
-                    let active = u8::MAX >> (PACKET - pixels.len());
-                    scene.intersect8(&rays, active, &mut hits);
-                    for (i, pixel) in pixels.iter_mut().enumerate() {
-                        let first = hits[i].map(|hit| scene.surface_hit(&rays[i], hit));
-                        let (radiance, rays) = this.radiance(rays[i], first, &mut samplers[i]);
+                    let first = y * width + packet * PACKET;
+                    let mut camera = CameraRays::trace(&this.ctx, iteration, first, pixels.len());
+                    for (lane, pixel) in pixels.iter_mut().enumerate() {
+                        let (radiance, rays) = this.radiance(
+                            camera.rays[lane],
+                            camera.first_hit(&this.ctx, lane),
+                            &mut camera.samplers[lane],
+                        );
                         stats.rays += rays;
                         add_sample(pixel, radiance, &mut stats.dropped_samples);
                     }

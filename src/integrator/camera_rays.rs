@@ -1,0 +1,50 @@
+//! The camera rays of neighbouring pixels, traced together. They start at the camera and part
+//! little, so Embree traces them as one packet for less than as many single rays cost (the first
+//! rays are the longest: they cross the scene from outside its surfaces). Each pixel keeps its own
+//! sampler, and a packet's hits are those of single rays, so the images are the same bit for bit.
+
+use super::RenderContext;
+use crate::accel::{Hit, Ray, PACKET};
+use crate::sampling::Sampler;
+use crate::scene::SurfaceHit;
+
+/// The camera rays of pixels `first..first + len` (row-major indices; `len` at most
+/// [`PACKET`]) with their samplers and closest hits.
+pub struct CameraRays {
+    /// Each pixel's eye sampler, its pixel jitter drawn.
+    pub samplers: [Sampler; PACKET],
+    pub rays: [Ray; PACKET],
+    hits: [Option<Hit>; PACKET],
+}
+
+impl CameraRays {
+    /// Draws each pixel's jitter, makes its camera ray and traces the rays as one packet.
+    pub fn trace(ctx: &RenderContext, iteration: u64, first: usize, len: usize) -> Self {
+        debug_assert!((1..=PACKET).contains(&len));
+        let (seed, kind) = (ctx.options.seed, ctx.options.sampler);
+        let width = ctx.camera.width as usize;
+        // Lanes past `len` repeat the last pixel and stay inactive.
+        let pixel = |lane: usize| first + lane.min(len - 1);
+        let mut samplers: [Sampler; PACKET] =
+            std::array::from_fn(|lane| Sampler::eye(kind, seed, iteration, pixel(lane) as u64));
+        let rays: [Ray; PACKET] = std::array::from_fn(|lane| {
+            let p = pixel(lane);
+            let [jx, jy] = samplers[lane].next_2d();
+            ctx.camera
+                .generate_ray((p % width) as f32 + jx, (p / width) as f32 + jy)
+        });
+        let mut hits = [None; PACKET];
+        ctx.scene
+            .intersect8(&rays, u8::MAX >> (PACKET - len), &mut hits);
+        CameraRays {
+            samplers,
+            rays,
+            hits,
+        }
+    }
+
+    /// The surface point the camera ray of lane `lane` hit first.
+    pub fn first_hit(&self, ctx: &RenderContext, lane: usize) -> Option<SurfaceHit> {
+        self.hits[lane].map(|hit| ctx.scene.surface_hit(&self.rays[lane], hit))
+    }
+}
