@@ -248,8 +248,8 @@ const MAX_ROWS: usize = 9;
 pub struct BegunQuery {
     q: Vec3,
     within: Within,
-    /// The key of the first row's run; the other rows' follow by the strides.
-    first: u64,
+    /// Per row, its run's key.
+    keys: [u64; MAX_ROWS],
     rows: Rows,
     /// Per row, the (key, range) words of the slot its run hashes to, as read at the start.
     words: [(u64, u64); MAX_ROWS],
@@ -263,7 +263,7 @@ enum Rows {
     /// The sphere touches one cell more along an axis: disjoint runs per row, looked up
     /// when scanned.
     Irregular,
-    /// The runs x runs rows from `first`, their slots read.
+    /// The runs x runs rows of runs, along y then z, their slots read.
     Probed(CellRuns),
 }
 
@@ -526,7 +526,7 @@ impl HashGrid {
         let mut query = BegunQuery {
             q,
             within,
-            first: 0,
+            keys: [0; MAX_ROWS],
             rows: Rows::Nothing,
             words: [(EMPTY, 0); MAX_ROWS],
         };
@@ -537,11 +537,18 @@ impl HashGrid {
             query.rows = Rows::Irregular;
             return query;
         }
-        query.first = self.key(lo);
         query.rows = Rows::Probed(self.runs);
-        for (row, words) in query.words[..self.runs.rows()].iter_mut().enumerate() {
-            let s = &self.table[self.slot_of(self.row_key(query.first, self.runs, row))];
-            *words = (s.key.load(Relaxed), s.range.load(Relaxed));
+        let first = self.key(lo);
+        let run = self.runs.len() as u64;
+        let mut row = 0;
+        for z in 0..run {
+            for y in 0..run {
+                let key = first + y * self.stride_y + z * self.stride_z;
+                let s = &self.table[self.slot_of(key)];
+                query.keys[row] = key;
+                query.words[row] = (s.key.load(Relaxed), s.range.load(Relaxed));
+                row += 1;
+            }
         }
         query
     }
@@ -582,7 +589,7 @@ impl HashGrid {
                 let mut ranges: [std::ops::Range<usize>; MAX_ROWS] = Default::default();
                 let ranges = &mut ranges[..runs.rows()];
                 for (row, range) in ranges.iter_mut().enumerate() {
-                    *range = self.probed_range(query, runs, row);
+                    *range = self.probed_range(query, row);
                     touch(range.clone());
                 }
                 for range in ranges {
@@ -597,24 +604,11 @@ impl HashGrid {
         }
     }
 
-    /// The key of row `row` of the `runs` x `runs` rows from the run keyed `first`.
-    #[inline]
-    fn row_key(&self, first: u64, runs: CellRuns, row: usize) -> u64 {
-        let (row, run) = (row as u64, runs.len() as u64);
-        first + row % run * self.stride_y + row / run * self.stride_z
-    }
-
     /// The range of a begun query's row, from the slot words read at its start: the run's own
     /// slot, an empty one, or another run's, past which the lookup probes on.
     #[inline]
-    fn probed_range(
-        &self,
-        query: &BegunQuery,
-        runs: CellRuns,
-        row: usize,
-    ) -> std::ops::Range<usize> {
-        let (found, range) = query.words[row];
-        let key = self.row_key(query.first, runs, row);
+    fn probed_range(&self, query: &BegunQuery, row: usize) -> std::ops::Range<usize> {
+        let ((found, range), key) = (query.words[row], query.keys[row]);
         if found == key {
             (range >> 32) as usize..range as u32 as usize
         } else if found == EMPTY {
