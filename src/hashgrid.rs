@@ -55,6 +55,11 @@ pub enum CellRuns {
 impl CellRuns {
     pub const ALL: [CellRuns; 2] = [CellRuns::Pairs, CellRuns::Triplets];
 
+    /// Rows of runs a query reads: `len` x `len`.
+    const fn rows(self) -> usize {
+        (self.len() * self.len()) as usize
+    }
+
     /// Cells in one run.
     const fn len(self) -> i64 {
         match self {
@@ -234,6 +239,32 @@ impl Within {
             reach: radius * (1.0 + 1e-6),
         }
     }
+}
+
+/// Rows of runs a query reads at most: triplets' 3 x 3.
+const MAX_ROWS: usize = 9;
+/// A query whose table reads have been issued ([`HashGrid::begin_query`]), to be scanned later.
+#[derive(Clone, Copy, Debug)]
+pub struct BegunQuery {
+    q: Vec3,
+    within: Within,
+    /// Per row, its run's key.
+    keys: [u64; MAX_ROWS],
+    rows: Rows,
+    /// Per row, the (key, range) words of the slot its run hashes to, as read at the start.
+    words: [(u64, u64); MAX_ROWS],
+}
+
+/// Which cells a begun query reads.
+#[derive(Clone, Copy, Debug)]
+enum Rows {
+    /// None: the sphere is off the points' cells.
+    Nothing,
+    /// The sphere touches one cell more along an axis: disjoint runs per row, looked up
+    /// when scanned.
+    Irregular,
+    /// The runs x runs rows of runs, along y then z, their slots read.
+    Probed(CellRuns),
 }
 
 /// A grid over no points; [`HashGrid::rebuild`] fills it.
@@ -485,21 +516,61 @@ impl HashGrid {
         }
     }
 
-    /// [`Self::query_slot_batches_within`] that asks `keep` about each slot as the scan finds
-    /// it, and visits only the slots it accepts, in the same order. A caller whose `keep` reads
-    /// the point's record starts that read (a cache miss, most often) while the scan goes on to
-    /// the query's other rows, rather than once all are scanned.
+    /// Starts a query of the points within `within` of `q`: reads the table slots its runs hash
+    /// to and returns at once, for [`Self::query_kept_slot_batches_begun`] to scan later. The
+    /// loads are plain ones whose words the query keeps, so where the caller begins a query
+    /// before other work (an eye vertex's connections, which wait on Embree), their cache
+    /// misses (the table is tens of megabytes) overlap that work instead of being waited for.
     #[inline]
-    pub fn query_kept_slot_batches_within(
+    pub fn begin_query(&self, q: Vec3, within: Within) -> BegunQuery {
+        let mut query = BegunQuery {
+            q,
+            within,
+            keys: [0; MAX_ROWS],
+            rows: Rows::Nothing,
+            words: [(EMPTY, 0); MAX_ROWS],
+        };
+        let Some((lo, hi)) = self.cell_bounds(q, within.reach) else {
+            return query;
+        };
+        if !(0..3).all(|axis| hi[axis] - lo[axis] < self.runs.len()) {
+            query.rows = Rows::Irregular;
+            return query;
+        }
+        query.rows = Rows::Probed(self.runs);
+        let first = self.key(lo);
+        let run = self.runs.len() as u64;
+        let mut row = 0;
+        for z in 0..run {
+            for y in 0..run {
+                let key = first + y * self.stride_y + z * self.stride_z;
+                let s = &self.table[self.slot_of(key)];
+                query.keys[row] = key;
+                query.words[row] = (s.key.load(Relaxed), s.range.load(Relaxed));
+                row += 1;
+            }
+        }
+        query
+    }
+
+    /// The slots of a begun query's points, in [`Self::query_slots`]'s order, a batch at a time
+    /// as [`Self::query_slot_batches`] gives them, less those `keep` rejects. `keep` is asked
+    /// about each slot as the scan finds it: a caller whose `keep` reads the point's record
+    /// starts that read (a cache miss, most often) while the scan goes on. Before any range is
+    /// scanned, `touch` is called with each: a caller that reads its records of the range
+    /// there starts all those misses at once, with the position groups', instead of one after
+    /// the other as the scan finds the points.
+    #[inline]
+    pub fn query_kept_slot_batches_begun(
         &self,
-        q: Vec3,
-        within: Within,
+        query: &BegunQuery,
         mut keep: impl FnMut(u32) -> bool,
+        mut touch: impl FnMut(std::ops::Range<usize>),
         mut visit: impl FnMut(&[u32]),
     ) {
         let mut batch = [0u32; QUERY_BATCH];
         let mut len = 0;
-        self.query_slots_within(q, within, |slot, _| {
+        let mut push = |slot: usize, _| {
             batch[len] = slot as u32;
             // Without a branch on the answer, which waits for the record: the next slot found
             // overwrites a rejected one.
@@ -508,9 +579,42 @@ impl HashGrid {
                 visit(&batch);
                 len = 0;
             }
-        });
+        };
+        match query.rows {
+            Rows::Nothing => {}
+            Rows::Irregular => {
+                self.query_slots_within(query.q, query.within, &mut push);
+            }
+            Rows::Probed(runs) => {
+                let mut ranges: [std::ops::Range<usize>; MAX_ROWS] = Default::default();
+                let ranges = &mut ranges[..runs.rows()];
+                for (row, range) in ranges.iter_mut().enumerate() {
+                    *range = self.probed_range(query, row);
+                    touch(range.clone());
+                }
+                for range in ranges {
+                    let range = std::mem::take(range);
+                    self.points
+                        .scan(range, query.q, query.within.radius_sq, &mut push);
+                }
+            }
+        }
         if len > 0 {
             visit(&batch[..len]);
+        }
+    }
+
+    /// The range of a begun query's row, from the slot words read at its start: the run's own
+    /// slot, an empty one, or another run's, past which the lookup probes on.
+    #[inline]
+    fn probed_range(&self, query: &BegunQuery, row: usize) -> std::ops::Range<usize> {
+        let ((found, range), key) = (query.words[row], query.keys[row]);
+        if found == key {
+            (range >> 32) as usize..range as u32 as usize
+        } else if found == EMPTY {
+            0..0
+        } else {
+            self.lookup_from(key, (self.slot_of(key) + 1) & (self.table.len() - 1))
         }
     }
 
@@ -583,8 +687,13 @@ impl HashGrid {
     /// The range of the run `key`, empty if no point lies in it.
     #[inline]
     fn lookup(&self, key: u64) -> std::ops::Range<usize> {
+        self.lookup_from(key, self.slot_of(key))
+    }
+
+    /// [`Self::lookup`] probing from `slot` on.
+    #[inline]
+    fn lookup_from(&self, key: u64, mut slot: usize) -> std::ops::Range<usize> {
         let mask = self.table.len() - 1;
-        let mut slot = self.slot_of(key);
         loop {
             let s = &self.table[slot];
             let found = s.key.load(Relaxed);
@@ -1245,25 +1354,51 @@ mod tests {
         );
     }
 
+    /// Begun queries, at the grid's radius and others, in both layouts, visit the slots
+    /// `query_slots_within` finds that `keep` accepts, in its order, and touch ranges holding
+    /// every one of them before visiting any.
     #[test]
-    fn kept_batches_match_query() {
+    fn begun_queries_match_query() {
         let mut rng = Rng::for_sample(10, 0, 0, Stream::Eye);
         let points = random_points(&mut rng, 20_000, 1);
-        let grid = HashGrid::build(&points, 0.1);
-        let within = Within::radius(0.1);
+        let mut grid = HashGrid::default();
         let mut longest = 0;
-        for &q in points.iter().take(200) {
-            let mut expected = Vec::new();
-            grid.query_slots(q, |slot, _| expected.push(slot as u32));
-            let keep = |slot: u32| !grid.index_of(slot as usize).is_multiple_of(3);
-            expected.retain(|&slot| keep(slot));
-            let mut found = Vec::new();
-            grid.query_kept_slot_batches_within(q, within, keep, |batch| {
-                assert!(!batch.is_empty() && batch.len() <= QUERY_BATCH);
-                found.extend_from_slice(batch);
-            });
-            longest = longest.max(expected.len());
-            assert_eq!(found, expected);
+        for runs in CellRuns::ALL {
+            grid.rebuild_as(&points, 0.1, runs);
+            let mut probed = 0;
+            for (k, &q) in points.iter().take(300).enumerate() {
+                let within = Within::radius(0.1 * [1.0, 0.3, 2.5][k % 3]);
+                let mut all = Vec::new();
+                grid.query_slots_within(q, within, |slot, _| all.push(slot));
+                let keep = |slot: u32| !grid.index_of(slot as usize).is_multiple_of(3);
+                let expected: Vec<u32> =
+                    all.iter().map(|&s| s as u32).filter(|&s| keep(s)).collect();
+                let (mut found, mut touched) = (Vec::new(), Vec::new());
+                let visits = std::cell::Cell::new(0);
+                let query = grid.begin_query(q, within);
+                let touch = |range| {
+                    assert_eq!(visits.get(), 0, "ranges touched before the first visit");
+                    touched.push(range);
+                };
+                grid.query_kept_slot_batches_begun(&query, keep, touch, |batch| {
+                    assert!(!batch.is_empty() && batch.len() <= QUERY_BATCH);
+                    found.extend_from_slice(batch);
+                    visits.set(visits.get() + 1);
+                });
+                longest = longest.max(expected.len());
+                assert_eq!(found, expected, "query {q}, {runs:?}");
+                if let Rows::Probed(runs) = query.rows {
+                    probed += 1;
+                    assert_eq!(touched.len(), runs.rows());
+                    assert!(all.iter().all(|s| touched.iter().any(|r| r.contains(s))));
+                }
+            }
+            // Both kinds of rows: the larger radius, and queries from the points on the planes
+            // x = 0 and y = -1 (cell faces), read irregular ones.
+            assert!(
+                (100..300).contains(&probed),
+                "{runs:?}: {probed} regular queries"
+            );
         }
         assert!(
             longest > 2 * QUERY_BATCH,

@@ -66,6 +66,20 @@ pub(super) trait MergeRecords: Sync {
     /// read before the rest.
     fn path_length(&self, slot: u32) -> u32;
     fn vertex(&self, slot: u32) -> MergeVertex;
+    /// Bytes of one record: the layout's stride in memory.
+    const RECORD_BYTES: usize;
+
+    /// Reads the records of `slots` (a grid range, contiguous in memory) ahead of the merge's
+    /// reads of those it keeps, with loads at most a cache line apart: their misses then start
+    /// together, with the scan's, instead of one by one as the scan finds the points. The
+    /// values are kept opaque so the loads stay where they are and are not dropped as unused.
+    #[inline]
+    fn touch(&self, slots: std::ops::Range<usize>) {
+        let step = (64 / Self::RECORD_BYTES).max(1);
+        for slot in slots.step_by(step) {
+            std::hint::black_box(self.path_length(slot as u32));
+        }
+    }
 }
 
 impl MergeRecords for [MergeVertex] {
@@ -78,6 +92,8 @@ impl MergeRecords for [MergeVertex] {
     fn vertex(&self, slot: u32) -> MergeVertex {
         self[slot as usize]
     }
+
+    const RECORD_BYTES: usize = std::mem::size_of::<MergeVertex>();
 }
 
 /// The vertices an iteration's merges read, in one of the layouts.
@@ -144,6 +160,8 @@ impl MergeRecords for NarrowVertices<'_> {
             mis: self.form.unpack(r.mis),
         }
     }
+
+    const RECORD_BYTES: usize = std::mem::size_of::<Narrow>();
 }
 
 /// One-stage's packed vertices with what unpacks them.
@@ -163,6 +181,8 @@ impl MergeRecords for PackedVertices<'_> {
     fn vertex(&self, slot: u32) -> MergeVertex {
         self.records[slot as usize].unpack(self.form)
     }
+
+    const RECORD_BYTES: usize = std::mem::size_of::<Packed>();
 }
 
 /// Which MIS quantity besides d^VCM a merge reads ([`VcmWeights::merge`]): where merges compete

@@ -39,7 +39,7 @@ use crate::accel::Ray;
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
-use crate::hashgrid::{HashGrid, Within};
+use crate::hashgrid::{BegunQuery, HashGrid, Within};
 use crate::light::Aim;
 use crate::options::{MemoryLayout, RenderOptions, Technique};
 use crate::sampling::Sampler;
@@ -895,28 +895,27 @@ impl<'a> VertexCm<'a> {
     }
 
     /// Merges an eye vertex with the light vertices around it by density estimation (001
-    /// eqs. 38-39), not yet normalised by 1 / (pi r^2 n_VM). `gathered` gives the grid and,
-    /// where the light vertices' MIS quantities are not kept for the eye sub-path's radius,
-    /// re-runs them.
+    /// eqs. 38-39), not yet normalised by 1 / (pi r^2 n_VM): those `query` (begun at the
+    /// vertex, of the eye sub-path's radius) finds. `gathered` gives the grid and, where the
+    /// light vertices' MIS quantities are not kept for the eye sub-path's radius, re-runs them.
     fn merge(
         &self,
         w: &VcmWeights,
         state: &SubPath,
         bsdf: &Bsdf,
-        hit: &SurfaceHit,
+        query: &BegunQuery,
         gathered: Gathered,
         vertices: &(impl MergeRecords + ?Sized),
     ) -> Rgb {
         let grid = gathered.grid;
         let max_length = self.ctx.max_path_length();
         let mut sum = Rgb::BLACK;
-        // The eye sub-path's own radius: the grid's, or with per-pixel radii another.
         let within_bounds = |slot: u32| {
             let segments = vertices.path_length(slot).saturating_add(state.path_length);
             segments <= max_length && !self.too_short(segments)
         };
-        let within = Within::radius(w.radius);
-        grid.query_kept_slot_batches_within(hit.position, within, within_bounds, |batch| {
+        let touch = |slots| vertices.touch(slots);
+        grid.query_kept_slot_batches_begun(query, within_bounds, touch, |batch| {
             for &slot in batch {
                 let lv = vertices.vertex(slot);
                 let eval = bsdf.eval(lv.wo);
@@ -1037,6 +1036,17 @@ impl<'a> VertexCm<'a> {
                     }
                 }
                 state.density = self.density_at(&w, hit.position, &mut state);
+                // The merge's table reads start here, so their cache misses overlap the light
+                // sampling and the connections (their shadow rays) instead of being waited for
+                // in the merge, the first of its chain of dependent misses.
+                let merge_query = match (gathered, self.modes.gather) {
+                    (Some(gathered), Gather::Density) => Some(
+                        gathered
+                            .grid
+                            .begin_query(hit.position, Within::radius(w.radius)),
+                    ),
+                    _ => None,
+                };
                 if self.modes.vc {
                     color += state.throughput
                         * self.light_sampling(&w, &state, &hit, &bsdf, &mut sampler, stats);
@@ -1063,17 +1073,17 @@ impl<'a> VertexCm<'a> {
                         let _ = light_path.iter().try_for_each(connect);
                     }
                 }
-                match (gathered, self.modes.gather) {
-                    (Some(gathered), Gather::Density) => {
+                match (gathered, self.modes.gather, &merge_query) {
+                    (Some(gathered), Gather::Density, Some(query)) => {
                         let merged = match pass.merge_vertices {
                             MergeVertices::Whole(v) => {
-                                self.merge(&w, &state, &bsdf, &hit, gathered, v)
+                                self.merge(&w, &state, &bsdf, query, gathered, v)
                             }
                             MergeVertices::Narrow(v) => {
-                                self.merge(&w, &state, &bsdf, &hit, gathered, &v)
+                                self.merge(&w, &state, &bsdf, query, gathered, &v)
                             }
                             MergeVertices::Packed(v) => {
-                                self.merge(&w, &state, &bsdf, &hit, gathered, &v)
+                                self.merge(&w, &state, &bsdf, query, gathered, &v)
                             }
                         };
                         color += state.throughput * merged * w.vm_normalization;
@@ -1081,14 +1091,14 @@ impl<'a> VertexCm<'a> {
                             break;
                         }
                     }
-                    (Some(gathered), Gather::Blend) => {
+                    (Some(gathered), Gather::Blend, _) => {
                         if let Some(blend) = &self.blend {
                             let merged =
                                 blend.merge(&w, (&state, &hit, &bsdf), gathered, tentative, stats);
                             color += state.throughput * merged;
                         }
                     }
-                    (Some(gathered), Gather::UpgLight | Gather::Hybrid) => {
+                    (Some(gathered), Gather::UpgLight | Gather::Hybrid, _) => {
                         if let Some(upg) = &self.upg_merges {
                             let merged = upg.from_light(
                                 &w,
