@@ -212,7 +212,9 @@ impl Light {
         }
     }
 
-    /// A uniform point on an area light.
+    /// A uniform point on an area light. Always inlined: out of line, the point came back
+    /// through memory in pieces that its caller's wider loads straddled (a store-forwarding
+    /// stall at every light sample).
     #[inline(always)]
     fn area_point(&self, u: [f32; 2]) -> Option<AreaPoint> {
         match *self {
