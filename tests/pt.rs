@@ -1,4 +1,5 @@
-//! The path tracer: the furnace test (000 sec. 3.5) and thread-count independence.
+//! The path tracer: the furnace test (000 sec. 3.5), thread-count independence and its camera
+//! packets.
 
 use vmerge::accel::AccelKind;
 use vmerge::color::Rgb;
@@ -111,4 +112,68 @@ fn one_thread_and_many_threads_agree_bitwise() {
         .zip(&many.sum)
         .all(|(a, b)| a.map(f64::to_bits) == b.map(f64::to_bits)));
     assert!(one.average()[0] > 0.0);
+}
+
+/// The camera rays `pt` traces as packets are those of one ray at a time: each lane's ray is the
+/// one its pixel's own sampler makes, and its first hit the one a single query finds, for full
+/// packets and for the short one that ends a row of 13 pixels.
+#[test]
+fn camera_packets_are_single_rays() {
+    use vmerge::accel::PACKET;
+    use vmerge::integrator::camera_rays::CameraRays;
+    use vmerge::sampling::Sampler;
+    let path = format!(
+        "{}/scenes/cornell-box/scene.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let (width, height) = (13u32, 9u32);
+    for accel in [AccelKind::default_kind(), AccelKind::Bvh] {
+        let options = LoadOptions {
+            accel,
+            lenient: false,
+            shading_normals: true,
+        };
+        let scene = scene::load(path.as_ref(), &options).unwrap_or_else(|e| panic!("{e}"));
+        for sampler in [SamplerKind::Sobol, SamplerKind::Independent] {
+            let options = RenderOptions {
+                technique: Technique::Pt,
+                resolution: Some([width, height]),
+                sampler,
+                ..Default::default()
+            };
+            let camera = Camera::new(scene.camera(None).unwrap(), width, height);
+            let ctx = RenderContext {
+                scene: &scene,
+                camera,
+                options: &options,
+            };
+            let (mut lanes, mut hits) = (0, 0);
+            for y in 0..height as usize {
+                for start in (0..width as usize).step_by(PACKET) {
+                    let len = PACKET.min(width as usize - start);
+                    let first = y * width as usize + start;
+                    let mut packet = CameraRays::trace(&ctx, 3, first, len);
+                    for lane in 0..len {
+                        let mut single = Sampler::eye(sampler, 0, 3, (first + lane) as u64);
+                        let [jx, jy] = single.next_2d();
+                        let x = (start + lane) as f32 + jx;
+                        let ray = ctx.camera.generate_ray(x, y as f32 + jy);
+                        assert_eq!(packet.rays[lane], ray, "pixel {}", first + lane);
+                        // The samplers go on as the single ray's would.
+                        assert_eq!(packet.samplers[lane].next_2d(), single.next_2d());
+                        let expected = scene.intersect(&ray).map(|h| (h.hit, h.position));
+                        let found = packet.first_hit(&ctx, lane).map(|h| (h.hit, h.position));
+                        assert_eq!(found, expected, "{accel:?}, pixel {}", first + lane);
+                        lanes += 1;
+                        hits += usize::from(found.is_some());
+                    }
+                }
+            }
+            assert_eq!(lanes, (width * height) as usize);
+            assert!(
+                hits > lanes / 2,
+                "the box fills the view: {hits} of {lanes} hit"
+            );
+        }
+    }
 }
