@@ -16,10 +16,11 @@
 //! thread count. Each chunk's buffers (its splats, its light sub-path) are kept from one
 //! iteration to the next: the steady state allocates nothing.
 
+use super::camera_rays::CameraRays;
 use super::connection::{Connection, LightSample};
 use super::mis::{self, BptStep, BptVertex, Power};
 use super::{Integrator, IterationStats, RenderContext};
-use crate::accel::Ray;
+use crate::accel::{Ray, PACKET};
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::{add_sample, add_splats, Splats};
@@ -387,18 +388,17 @@ impl<'a> Bpt<'a> {
         c.value * lv.throughput * weight
     }
 
-    /// Traces the eye sub-path of `pixel` against its light sub-path `light_path`.
+    /// Traces the eye sub-path that starts with the camera ray `ray`, whose closest hit `first`
+    /// has been found already (and counted), against the pixel's light sub-path `light_path`.
     fn trace_eye_path(
         &self,
         sampler: &mut Sampler,
-        pixel: usize,
+        ray: Ray,
+        first: Option<SurfaceHit>,
         light_path: &[LightVertex],
         stats: &mut IterationStats,
     ) -> Rgb {
         let camera = &self.ctx.camera;
-        let width = camera.width as usize;
-        let [jx, jy] = sampler.next_2d();
-        let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
         let mut state = SubPath {
             ray,
             throughput: Rgb::WHITE,
@@ -416,13 +416,12 @@ impl<'a> Bpt<'a> {
         };
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
+        let mut found = first;
         loop {
             sampler.start_vertex(state.index);
-            stats.rays += 1;
-            let hit = self.scene().intersect(&state.ray);
-            state.arrive(self.power, hit.as_ref());
-            color += state.throughput * self.emission(&state, hit.as_ref());
-            let Some(hit) = hit else {
+            state.arrive(self.power, found.as_ref());
+            color += state.throughput * self.emission(&state, found.as_ref());
+            let Some(hit) = found else {
                 break;
             };
             if state.index >= max_length {
@@ -448,6 +447,8 @@ impl<'a> Bpt<'a> {
             if self.scatter(&mut state, &hit, &bsdf, sampler).is_none() {
                 break;
             }
+            stats.rays += 1;
+            found = self.scene().intersect(&state.ray);
         }
         color
     }
@@ -470,26 +471,32 @@ impl Integrator for Bpt<'_> {
             .for_each(|(c, (colors, chunk))| {
                 chunk.splats.clear();
                 chunk.stats = IterationStats::default();
-                for (offset, color) in colors.iter_mut().enumerate() {
-                    let pixel = c * CHUNK + offset;
-                    if trace_light {
-                        let mut sampler =
-                            Sampler::light(kind, seed, iteration, pixel as u64, pixels as u64);
-                        this.trace_light_path(
-                            &mut sampler,
-                            &mut chunk.light_path,
-                            &mut chunk.splats,
+                for (packet, colors) in colors.chunks_mut(PACKET).enumerate() {
+                    let first = c * CHUNK + packet * PACKET;
+                    let mut camera = CameraRays::trace(&this.ctx, iteration, first, colors.len());
+                    chunk.stats.rays += colors.len() as u64;
+                    for (lane, color) in colors.iter_mut().enumerate() {
+                        if trace_light {
+                            let pixel = (first + lane) as u64;
+                            let mut sampler =
+                                Sampler::light(kind, seed, iteration, pixel, pixels as u64);
+                            this.trace_light_path(
+                                &mut sampler,
+                                &mut chunk.light_path,
+                                &mut chunk.splats,
+                                &mut chunk.stats,
+                            );
+                        }
+                        let first_hit = camera.first_hit(&this.ctx, lane);
+                        let estimate = this.trace_eye_path(
+                            &mut camera.samplers[lane],
+                            camera.rays[lane],
+                            first_hit,
+                            &chunk.light_path,
                             &mut chunk.stats,
                         );
+                        add_sample(color, estimate, &mut chunk.stats.dropped_samples);
                     }
-                    let mut sampler = Sampler::eye(kind, seed, iteration, pixel as u64);
-                    let estimate = this.trace_eye_path(
-                        &mut sampler,
-                        pixel,
-                        &chunk.light_path,
-                        &mut chunk.stats,
-                    );
-                    add_sample(color, estimate, &mut chunk.stats.dropped_samples);
                 }
             });
         let mut stats = IterationStats::default();
