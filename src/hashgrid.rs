@@ -96,6 +96,17 @@ impl Slot {
             range: AtomicU64::new(0),
         }
     }
+
+    /// The word a slot stores for the range `begin..end`.
+    fn pack_range(begin: u32, end: u32) -> u64 {
+        u64::from(begin) << 32 | u64::from(end)
+    }
+
+    /// The range a slot's `range` word holds.
+    #[inline]
+    fn unpack_range(word: u64) -> std::ops::Range<usize> {
+        (word >> 32) as usize..word as u32 as usize
+    }
 }
 
 /// Points in one [`Group`].
@@ -610,7 +621,7 @@ impl HashGrid {
     fn probed_range(&self, query: &BegunQuery, row: usize) -> std::ops::Range<usize> {
         let ((found, range), key) = (query.words[row], query.keys[row]);
         if found == key {
-            (range >> 32) as usize..range as u32 as usize
+            Slot::unpack_range(range)
         } else if found == EMPTY {
             0..0
         } else {
@@ -699,7 +710,7 @@ impl HashGrid {
             let found = s.key.load(Relaxed);
             if found == key {
                 let range = s.range.load(Relaxed);
-                return (range >> 32) as usize..range as u32 as usize;
+                return Slot::unpack_range(range);
             }
             if found == EMPTY {
                 return 0..0;
@@ -936,7 +947,7 @@ impl HashGrid {
                         }
                         table[slot]
                             .range
-                            .store(u64::from(begin) << 32 | u64::from(end), Relaxed);
+                            .store(Slot::pack_range(begin, end), Relaxed);
                     }
                 }
             });
