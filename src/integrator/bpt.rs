@@ -389,7 +389,7 @@ impl<'a> Bpt<'a> {
     }
 
     /// Traces the eye sub-path that starts with the camera ray `ray`, whose closest hit `first`
-    /// has been found already (and counted), against the pixel's light sub-path `light_path`.
+    /// has been found already, against the pixel's light sub-path `light_path`.
     fn trace_eye_path(
         &self,
         sampler: &mut Sampler,
@@ -416,6 +416,8 @@ impl<'a> Bpt<'a> {
         };
         let max_length = self.ctx.max_path_length();
         let mut color = Rgb::BLACK;
+        // The camera ray's, then one per later vertex.
+        stats.rays += 1;
         let mut found = first;
         loop {
             sampler.start_vertex(state.index);
@@ -474,7 +476,6 @@ impl Integrator for Bpt<'_> {
                 for (packet, colors) in colors.chunks_mut(PACKET).enumerate() {
                     let first = c * CHUNK + packet * PACKET;
                     let mut camera = CameraRays::trace(&this.ctx, iteration, first, colors.len());
-                    chunk.stats.rays += colors.len() as u64;
                     for (lane, color) in colors.iter_mut().enumerate() {
                         if trace_light {
                             let pixel = (first + lane) as u64;
