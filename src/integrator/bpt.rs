@@ -176,10 +176,12 @@ impl<'a> Bpt<'a> {
         bsdf: &Bsdf,
         sampler: &mut Sampler,
     ) -> Option<()> {
-        let s = bsdf.sample(sampler.next_choice_2d())?;
-        if state.index >= self.ctx.options.roulette {
+        let roulette = state.index >= self.ctx.options.roulette;
+        let (u, u_roulette) = sampler.next_scatter(roulette);
+        let s = bsdf.sample(u)?;
+        if roulette {
             let q = bsdf.continuation_probability();
-            if sampler.next_f32() >= q {
+            if u_roulette >= q {
                 return None;
             }
             state.throughput /= q;

@@ -87,14 +87,14 @@ impl<'a> PathTracer<'a> {
                 radiance += throughput * light;
                 rays += shadow_rays;
             }
-            let u = sampler.next_choice_2d();
+            let (u, u_roulette) = sampler.next_scatter(length >= roulette);
             let Some(sample) = bsdf.sample(u) else {
                 break;
             };
             throughput *= sample.f * (bsdf.cos_theta(sample.wi) / sample.pdf_w);
             if length >= roulette {
                 let continue_probability = bsdf.continuation_probability();
-                if sampler.next_f32() >= continue_probability {
+                if u_roulette >= continue_probability {
                     break;
                 }
                 throughput /= continue_probability;

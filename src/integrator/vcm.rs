@@ -490,10 +490,12 @@ impl<'a> VertexCm<'a> {
         sampler: &mut Sampler,
         light_side: bool,
     ) -> Option<MisStep> {
-        let s = bsdf.sample(sampler.next_choice_2d())?;
-        if state.path_length >= self.ctx.options.roulette {
+        let roulette = state.path_length >= self.ctx.options.roulette;
+        let (u, u_roulette) = sampler.next_scatter(roulette);
+        let s = bsdf.sample(u)?;
+        if roulette {
             let q = bsdf.continuation_probability();
-            if sampler.next_f32() >= q {
+            if u_roulette >= q {
                 return None;
             }
             state.throughput /= q;

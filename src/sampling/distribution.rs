@@ -5,6 +5,9 @@
 #[derive(Clone, Debug)]
 pub struct Distribution1D {
     weights: Vec<f32>,
+    /// Each item's probability, divided out once: a sample's division would wait on the
+    /// search and hold up everything that weighs the sample.
+    pmfs: Vec<f32>,
     cdf: Vec<f64>,
     total: f64,
 }
@@ -22,8 +25,13 @@ impl Distribution1D {
             total += w as f64;
             cdf.push(total);
         }
-        (total > 0.0 && total.is_finite()).then_some(Distribution1D {
+        if !(total > 0.0 && total.is_finite()) {
+            return None;
+        }
+        let pmfs = weights.iter().map(|&w| (w as f64 / total) as f32).collect();
+        Some(Distribution1D {
             weights,
+            pmfs,
             cdf,
             total,
         })
@@ -39,7 +47,7 @@ impl Distribution1D {
 
     /// Probability of item `i`.
     pub fn pmf(&self, i: usize) -> f32 {
-        (self.weights[i] as f64 / self.total) as f32
+        self.pmfs[i]
     }
 
     /// Picks an item for `u` in [0, 1); returns it and its probability. Never returns an item
@@ -67,7 +75,7 @@ impl Distribution1D {
 
     /// Bytes held (weights and CDF).
     pub fn bytes(&self) -> usize {
-        self.weights.len() * std::mem::size_of::<f32>()
+        (self.weights.len() + self.pmfs.len()) * std::mem::size_of::<f32>()
             + self.cdf.len() * std::mem::size_of::<f64>()
     }
 }

@@ -92,6 +92,24 @@ impl Sampler {
         }
     }
 
+    /// The numbers of one scattering: a BSDF sample's choice and 2D point (as
+    /// [`Sampler::next_choice_2d`] has them) and, where `roulette`, the number Russian
+    /// roulette compares with its continuation probability (else 0). The Sobol sampler takes
+    /// all four from one slot: a hash and a shuffle fewer a vertex than a separate 1D draw,
+    /// and the roulette number stratified jointly with the direction.
+    #[inline(always)]
+    pub fn next_scatter(&mut self, roulette: bool) -> ([f32; 3], f32) {
+        match self {
+            Sampler::Sobol(s) => s.next_scatter(roulette),
+            Sampler::Independent(rng) => {
+                let choice = rng.next_f32();
+                let [u, v] = rng.next_2d();
+                let r = if roulette { rng.next_f32() } else { 0.0 };
+                ([choice, u, v], r)
+            }
+        }
+    }
+
     /// A choice (`[0]`, such as a BSDF's lobe or a light) and a 2D point (`[1]`, `[2]`), as
     /// a BSDF sample or a light sample takes them. Always inlined: a call returns the three
     /// numbers through memory in pieces that the caller's wider loads straddle, a
@@ -179,6 +197,22 @@ impl SobolSample {
         [choice, u, v]
     }
 
+    /// [`Self::next_choice_2d`]'s three numbers and, where `roulette`, dimension 3 of the same
+    /// point (else 0): a (3, m, 4)-net for every power-of-two run.
+    #[inline]
+    fn next_scatter(&mut self, roulette: bool) -> ([f32; 3], f32) {
+        let h = self.next_slot();
+        let r = self.shuffled(h);
+        let [u, v] = point_2d(r, h);
+        let choice = to_unit(scrambled(SobolDimension::Two, r, third_seed(h)));
+        let roulette = if roulette {
+            to_unit(scrambled(SobolDimension::Three, r, fourth_seed(h)))
+        } else {
+            0.0
+        };
+        ([choice, u, v], roulette)
+    }
+
     /// Dimensions 0-3 of one shuffled Sobol' point: a (3, m, 4)-net for every power-of-two
     /// run, so the two 2D points are stratified jointly, not only each on its own. Two slots.
     #[inline]
@@ -220,6 +254,12 @@ fn point_2d(r: u32, h: u64) -> [f32; 2] {
 #[inline]
 fn third_seed(h: u64) -> u32 {
     (h.wrapping_mul(0x94d0_49bb_1331_11eb) >> 32) as u32
+}
+
+/// A fourth scramble seed from a slot's hash, for a slot's dimension 3.
+#[inline]
+fn fourth_seed(h: u64) -> u32 {
+    (h.wrapping_mul(0xbf58_476d_1ce4_e5b9) >> 32) as u32
 }
 
 /// The first four dimensions of Sobol'.
@@ -430,6 +470,33 @@ mod tests {
                 for a2 in 0..=volume_bits - a0 - a1 {
                     let a = [a0, a1, a2, volume_bits - a0 - a1 - a2];
                     let counts = box_counts(&points, &[0, 1, 2, 3], &a);
+                    assert!(counts.iter().all(|&c| c == 8), "shape {a:?}: {counts:?}");
+                }
+            }
+        }
+    }
+
+    /// A scattering's four numbers from one slot: its first three are the slot's choice and
+    /// point, with or without the roulette number, and the first 2^m form a (3, m, 4)-net.
+    #[test]
+    fn scatter_draws_extend_the_choice_and_point_to_a_net() {
+        let m = 8u32;
+        let mut samples = Vec::new();
+        for i in 0..1u64 << m {
+            let (u, roulette) = SobolSample::new(3, Stream::Eye, 9, i).next_scatter(true);
+            assert_eq!(
+                SobolSample::new(3, Stream::Eye, 9, i).next_scatter(false),
+                (u, 0.0)
+            );
+            assert_eq!(u, SobolSample::new(3, Stream::Eye, 9, i).next_choice_2d());
+            samples.push([u[0], u[1], u[2], roulette]);
+        }
+        let volume_bits = m - 3;
+        for a0 in 0..=volume_bits {
+            for a1 in 0..=volume_bits - a0 {
+                for a2 in 0..=volume_bits - a0 - a1 {
+                    let a = [a0, a1, a2, volume_bits - a0 - a1 - a2];
+                    let counts = box_counts(&samples, &[0, 1, 2, 3], &a);
                     assert!(counts.iter().all(|&c| c == 8), "shape {a:?}: {counts:?}");
                 }
             }
