@@ -190,11 +190,7 @@ impl SobolSample {
     /// slot: a hash and a shuffle fewer than a 1D and a 2D draw.
     #[inline]
     fn next_choice_2d(&mut self) -> [f32; 3] {
-        let h = self.next_slot();
-        let r = self.shuffled(h);
-        let [u, v] = point_2d(r, h);
-        let choice = to_unit(scrambled(SobolDimension::Two, r, third_seed(h)));
-        [choice, u, v]
+        self.next_scatter(false).0
     }
 
     /// [`Self::next_choice_2d`]'s three numbers and, where `roulette`, dimension 3 of the same
@@ -464,12 +460,18 @@ mod tests {
         let points: Vec<[f32; 4]> = (0..1u64 << m)
             .map(|i| SobolSample::new(6, Stream::Light, 0, i).next_4d())
             .collect();
+        assert_four_dimensional_net(&points, m);
+    }
+
+    /// Every elementary box of volume 2^(3 - m) holds exactly 2^3 of the 2^m `points`: a
+    /// (3, m, 4)-net.
+    fn assert_four_dimensional_net(points: &[[f32; 4]], m: u32) {
         let volume_bits = m - 3;
         for a0 in 0..=volume_bits {
             for a1 in 0..=volume_bits - a0 {
                 for a2 in 0..=volume_bits - a0 - a1 {
                     let a = [a0, a1, a2, volume_bits - a0 - a1 - a2];
-                    let counts = box_counts(&points, &[0, 1, 2, 3], &a);
+                    let counts = box_counts(points, &[0, 1, 2, 3], &a);
                     assert!(counts.iter().all(|&c| c == 8), "shape {a:?}: {counts:?}");
                 }
             }
@@ -491,16 +493,7 @@ mod tests {
             assert_eq!(u, SobolSample::new(3, Stream::Eye, 9, i).next_choice_2d());
             samples.push([u[0], u[1], u[2], roulette]);
         }
-        let volume_bits = m - 3;
-        for a0 in 0..=volume_bits {
-            for a1 in 0..=volume_bits - a0 {
-                for a2 in 0..=volume_bits - a0 - a1 {
-                    let a = [a0, a1, a2, volume_bits - a0 - a1 - a2];
-                    let counts = box_counts(&samples, &[0, 1, 2, 3], &a);
-                    assert!(counts.iter().all(|&c| c == 8), "shape {a:?}: {counts:?}");
-                }
-            }
-        }
+        assert_four_dimensional_net(&samples, m);
     }
 
     /// A choice and a point from one slot: the first 2^m of them form a (1, m, 3)-net (every
