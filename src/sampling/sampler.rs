@@ -127,8 +127,8 @@ impl Sampler {
     }
 }
 
-/// Slots of draws one vertex may make: a light pick with its point, a BSDF lobe with its
-/// direction, Russian roulette (3), with room to spare.
+/// Slots of draws one vertex may make: a light pick with its point, and a BSDF lobe with its
+/// direction and the roulette number (2), with room to spare.
 const DIMENSIONS_PER_VERTEX: u64 = 8;
 
 /// One sample of a Sobol sequence: its index and the key that seeds its dimensions.
