@@ -22,17 +22,12 @@ impl CameraRays {
     pub fn trace(ctx: &RenderContext, iteration: u64, first: usize, len: usize) -> Self {
         debug_assert!((1..=PACKET).contains(&len));
         let (seed, kind) = (ctx.options.seed, ctx.options.sampler);
-        let width = ctx.camera.width as usize;
         // Lanes past `len` repeat the last pixel and stay inactive.
         let pixel = |lane: usize| first + lane.min(len - 1);
         let mut samplers: [Sampler; PACKET] =
             std::array::from_fn(|lane| Sampler::eye(kind, seed, iteration, pixel(lane) as u64));
-        let rays: [Ray; PACKET] = std::array::from_fn(|lane| {
-            let p = pixel(lane);
-            let [jx, jy] = samplers[lane].next_2d();
-            ctx.camera
-                .generate_ray((p % width) as f32 + jx, (p / width) as f32 + jy)
-        });
+        let rays: [Ray; PACKET] =
+            std::array::from_fn(|lane| camera_ray(ctx, pixel(lane), &mut samplers[lane]));
         let mut hits = [None; PACKET];
         ctx.scene
             .intersect8(&rays, u8::MAX >> (PACKET - len), &mut hits);
@@ -47,4 +42,13 @@ impl CameraRays {
     pub fn first_hit(&self, ctx: &RenderContext, lane: usize) -> Option<SurfaceHit> {
         self.hits[lane].map(|hit| ctx.scene.surface_hit(&self.rays[lane], hit))
     }
+}
+
+/// The camera ray of `pixel` (a row-major index), through the point of it that the pixel's eye
+/// sampler's first draw picks.
+pub fn camera_ray(ctx: &RenderContext, pixel: usize, sampler: &mut Sampler) -> Ray {
+    let width = ctx.camera.width as usize;
+    let [jx, jy] = sampler.next_2d();
+    ctx.camera
+        .generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy)
 }

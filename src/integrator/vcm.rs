@@ -23,6 +23,7 @@
 //! weights only need to sum to one over the techniques, and every technique evaluates the same
 //! pdfs.
 
+use super::camera_rays::camera_ray;
 use super::connection::{Connection, LightSample};
 use super::density::DensityMap;
 use super::mis::{
@@ -972,9 +973,7 @@ impl<'a> VertexCm<'a> {
         let mut sampler =
             Sampler::eye(self.ctx.options.sampler, seed, pass.iteration, pixel as u64);
         tentative.start_pixel(pixel);
-        let width = camera.width as usize;
-        let [jx, jy] = sampler.next_2d();
-        let ray = camera.generate_ray((pixel % width) as f32 + jx, (pixel / width) as f32 + jy);
+        let ray = camera_ray(&self.ctx, pixel, &mut sampler);
         let camera_pdf_w = camera.pdf_w(ray.dir);
         let primary = ray.dir;
         // Along the sub-path to the current vertex, while all vertices before it are specular.
