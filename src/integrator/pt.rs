@@ -87,12 +87,13 @@ impl<'a> PathTracer<'a> {
                 radiance += throughput * light;
                 rays += shadow_rays;
             }
-            let (u, u_roulette) = sampler.next_scatter(length >= roulette);
+            let roulette_here = length >= roulette;
+            let (u, u_roulette) = sampler.next_scatter(roulette_here);
             let Some(sample) = bsdf.sample(u) else {
                 break;
             };
             throughput *= sample.f * (bsdf.cos_theta(sample.wi) / sample.pdf_w);
-            if length >= roulette {
+            if roulette_here {
                 let continue_probability = bsdf.continuation_probability();
                 if u_roulette >= continue_probability {
                     break;
