@@ -44,6 +44,20 @@ impl CameraRays {
     }
 }
 
+/// The eye sampler of `pixel` (a row-major index) in `iteration`, its camera ray and that ray's
+/// closest hit: one lane of [`CameraRays::trace`], traced alone.
+pub fn camera_ray_traced(
+    ctx: &RenderContext,
+    iteration: u64,
+    pixel: usize,
+) -> (Sampler, Ray, Option<SurfaceHit>) {
+    let (seed, kind) = (ctx.options.seed, ctx.options.sampler);
+    let mut sampler = Sampler::eye(kind, seed, iteration, pixel as u64);
+    let ray = camera_ray(ctx, pixel, &mut sampler);
+    let hit = ctx.scene.intersect(&ray);
+    (sampler, ray, hit)
+}
+
 /// The camera ray of `pixel` (a row-major index), through the point of it that the pixel's eye
 /// sampler's first draw picks.
 pub fn camera_ray(ctx: &RenderContext, pixel: usize, sampler: &mut Sampler) -> Ray {

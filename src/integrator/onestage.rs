@@ -39,6 +39,7 @@
 //! layout cannot follow the memory a machine has; a two-stage render that does not fit is
 //! refused with the advice to render one-stage when that would fit (`memory.rs`).
 
+use super::super::camera_rays::camera_ray_traced;
 use super::{EyePass, LightChunk, LightPaths, LightVertex, VertexCm, EYE_TASK};
 use crate::color::Rgb;
 use crate::film::{add_sample, add_splats};
@@ -516,15 +517,16 @@ impl OneStage {
                         light.hold_one(&task.chunk.vertices);
                         let pass = EyePass {
                             w,
-                            iteration,
                             light: &light,
                             grid: pass_grid,
                             merge_vertices,
                         };
                         let mut s = IterationStats::default();
+                        let (mut sampler, ray, hit) = camera_ray_traced(&vcm.ctx, iteration, pixel);
                         let color = vcm.trace_eye_path(
                             &pass,
                             pixel,
+                            (&mut sampler, ray, hit),
                             (&mut tentative, &mut light_bsdfs),
                             &mut s,
                         );

@@ -23,7 +23,7 @@
 //! weights only need to sum to one over the techniques, and every technique evaluates the same
 //! pdfs.
 
-use super::camera_rays::camera_ray;
+use super::camera_rays::CameraRays;
 use super::connection::{Connection, LightSample};
 use super::density::DensityMap;
 use super::mis::{
@@ -36,7 +36,7 @@ use super::upg::hybrid::{self, Rule};
 use super::upg::merge::{Gathered, Reweigh, Tentative, UpgMerges};
 use super::upg::{Deferred, UpgCounters};
 use super::{Counters, Integrator, IterationStats, RenderContext};
-use crate::accel::Ray;
+use crate::accel::{Ray, PACKET};
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
@@ -196,7 +196,6 @@ type LightBsdfs<'s> = Vec<Option<Bsdf<'s>>>;
 /// What the eye sub-paths of one iteration share.
 struct EyePass<'i> {
     w: VcmWeights,
-    iteration: u64,
     light: &'i LightPaths,
     grid: Option<&'i HashGrid>,
     merge_vertices: MergeVertices<'i>,
@@ -947,11 +946,13 @@ impl<'a> VertexCm<'a> {
         sum
     }
 
-    /// Traces the eye sub-path of one pixel and returns its estimate.
+    /// Traces the eye sub-path of `pixel` and returns its estimate. It starts with the camera
+    /// ray `ray`, drawn from `sampler`, whose closest hit `first` has been found already.
     fn trace_eye_path(
         &self,
         pass: &EyePass,
         pixel: usize,
+        (sampler, ray, first): (&mut Sampler, Ray, Option<SurfaceHit>),
         (tentative, light_bsdfs): (&mut Tentative<'a>, &mut LightBsdfs<'a>),
         stats: &mut IterationStats,
     ) -> Rgb {
@@ -959,7 +960,6 @@ impl<'a> VertexCm<'a> {
         // vertex, before any technique of the sub-path weighs a merge.
         let mut w = pass.w;
         let camera = &self.ctx.camera;
-        let seed = self.ctx.options.seed;
         let light_path = pass.light.for_pixel(pixel);
         let reweigh = |w: &VcmWeights, index: usize| pass.light.reweighed(w, index, self.inv_k(w));
         let reweigh: Option<&Reweigh> = self.replays().then_some(&reweigh);
@@ -970,10 +970,7 @@ impl<'a> VertexCm<'a> {
             reweigh,
             inv_k: &inv_k,
         });
-        let mut sampler =
-            Sampler::eye(self.ctx.options.sampler, seed, pass.iteration, pixel as u64);
         tentative.start_pixel(pixel);
-        let ray = camera_ray(&self.ctx, pixel, &mut sampler);
         let camera_pdf_w = camera.pdf_w(ray.dir);
         let primary = ray.dir;
         // Along the sub-path to the current vertex, while all vertices before it are specular.
@@ -994,10 +991,12 @@ impl<'a> VertexCm<'a> {
         let mut color = Rgb::BLACK;
         let mut prev: Option<EyeVertex<Deferred>> = None;
         light_bsdfs.clear();
+        // The camera ray's, then one per later vertex.
+        stats.rays += 1;
+        let mut found = first;
         loop {
             sampler.start_vertex(state.path_length);
-            stats.rays += 1;
-            let Some(hit) = self.scene().intersect(&state.ray) else {
+            let Some(hit) = found.take() else {
                 color += state.throughput * self.emission(&w, &state, None);
                 break;
             };
@@ -1050,7 +1049,7 @@ impl<'a> VertexCm<'a> {
                 };
                 if self.modes.vc {
                     color += state.throughput
-                        * self.light_sampling(&w, &state, &hit, &bsdf, &mut sampler, stats);
+                        * self.light_sampling(&w, &state, &hit, &bsdf, sampler, stats);
                     let mut index = 0;
                     let connect = |lv: &LightVertex| {
                         if lv.path_length + state.path_length + 1 > max_length {
@@ -1126,12 +1125,14 @@ impl<'a> VertexCm<'a> {
                 path_length: state.path_length,
             });
             if self
-                .scatter(&w, &mut state, &hit, &bsdf, &mut sampler, false)
+                .scatter(&w, &mut state, &hit, &bsdf, sampler, false)
                 .is_none()
             {
                 break;
             }
             prev = before;
+            stats.rays += 1;
+            found = self.scene().intersect(&state.ray);
         }
         color
     }
@@ -1206,7 +1207,6 @@ impl Integrator for VertexCm<'_> {
         // Eye pass: one sub-path per pixel, each connecting to its own light sub-path.
         let pass = EyePass {
             w,
-            iteration,
             light,
             grid,
             merge_vertices: if narrow {
@@ -1219,17 +1219,24 @@ impl Integrator for VertexCm<'_> {
             },
         };
         let (eye_stats, upg) = frame
-            .par_iter_mut()
+            .par_chunks_mut(PACKET)
             .enumerate()
-            .with_max_len(EYE_TASK)
+            .with_max_len(EYE_TASK / PACKET)
             // One list of pending UPG merges per task, its storage reused for the task's pixels.
             .map_init(
                 || (Tentative::new(self.ctx.options.seed, iteration), Vec::new()),
-                |(tentative, light_bsdfs), (pixel, value)| {
+                |(tentative, light_bsdfs), (packet, values)| {
                     let mut stats = IterationStats::default();
-                    let scratch = (&mut *tentative, light_bsdfs);
-                    let color = self.trace_eye_path(&pass, pixel, scratch, &mut stats);
-                    add_sample(value, color, &mut stats.dropped_samples);
+                    let first = packet * PACKET;
+                    let mut camera = CameraRays::trace(&self.ctx, iteration, first, values.len());
+                    for (lane, value) in values.iter_mut().enumerate() {
+                        let hit = camera.first_hit(&self.ctx, lane);
+                        let start = (&mut camera.samplers[lane], camera.rays[lane], hit);
+                        let scratch = (&mut *tentative, &mut *light_bsdfs);
+                        let color =
+                            self.trace_eye_path(&pass, first + lane, start, scratch, &mut stats);
+                        add_sample(value, color, &mut stats.dropped_samples);
+                    }
                     (stats, tentative.take_counters())
                 },
             )
