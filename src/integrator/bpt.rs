@@ -19,6 +19,7 @@
 use super::camera_rays::CameraRays;
 use super::connection::{Connection, LightSample};
 use super::mis::{self, BptStep, BptVertex, Power};
+use super::scatter::continue_sub_path;
 use super::{Integrator, IterationStats, RenderContext};
 use crate::accel::{Ray, PACKET};
 use crate::bsdf::{Bsdf, TransportMode};
@@ -176,16 +177,8 @@ impl<'a> Bpt<'a> {
         bsdf: &Bsdf,
         sampler: &mut Sampler,
     ) -> Option<()> {
-        let roulette = state.index >= self.ctx.options.roulette;
-        let (u, u_roulette) = sampler.next_scatter(roulette);
-        let s = bsdf.sample(u)?;
-        if roulette {
-            let q = bsdf.continuation_probability();
-            if u_roulette >= q {
-                return None;
-            }
-            state.throughput /= q;
-        }
+        let (s, q) = continue_sub_path(bsdf, sampler, state.index, self.ctx.options.roulette)?;
+        state.throughput /= q;
         let cos_out = bsdf.cos_theta(s.wi);
         state.throughput *= s.f * (cos_out / s.pdf_w);
         if state.throughput.is_black() {

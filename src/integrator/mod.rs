@@ -17,6 +17,7 @@ pub mod connection;
 pub mod density;
 pub mod mis;
 pub mod pt;
+pub mod scatter;
 pub mod subpath;
 pub mod upg;
 pub mod vcm;

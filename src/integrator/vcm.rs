@@ -29,6 +29,7 @@ use super::density::DensityMap;
 use super::mis::{
     ConnectionPdfs, Gather, Neighbour, Power, Side, VcmVertex, VcmWeights, VmHere, NO_DENSITY,
 };
+use super::scatter::continue_sub_path;
 use super::subpath::{self, EyeVertex, MergeVertex, MisStep, PendingMis};
 use super::upg::acceptance::{Estimator, PacketWidth};
 use super::upg::blend::{Blend, Ramp};
@@ -490,16 +491,9 @@ impl<'a> VertexCm<'a> {
         sampler: &mut Sampler,
         light_side: bool,
     ) -> Option<MisStep> {
-        let roulette = state.path_length >= self.ctx.options.roulette;
-        let (u, u_roulette) = sampler.next_scatter(roulette);
-        let s = bsdf.sample(u)?;
-        if roulette {
-            let q = bsdf.continuation_probability();
-            if u_roulette >= q {
-                return None;
-            }
-            state.throughput /= q;
-        }
+        let roulette = self.ctx.options.roulette;
+        let (s, q) = continue_sub_path(bsdf, sampler, state.path_length, roulette)?;
+        state.throughput /= q;
         let cos_out = bsdf.cos_theta(s.wi);
         let here = self.modes.merge_leaving(light_side, state);
         // A merge deferred at the previous vertex settles as the vertex is left, which the
