@@ -39,11 +39,11 @@
 //! layout cannot follow the memory a machine has; a two-stage render that does not fit is
 //! refused with the advice to render one-stage when that would fit (`memory.rs`).
 
-use super::super::camera_rays::camera_ray_traced;
 use super::{EyePass, LightChunk, LightPaths, LightVertex, VertexCm, EYE_TASK};
 use crate::color::Rgb;
 use crate::film::{add_sample, add_splats};
 use crate::hashgrid::HashGrid;
+use crate::integrator::camera_rays::camera_ray_traced;
 use crate::integrator::mis::{VcmVertex, VcmWeights};
 use crate::integrator::subpath::MergeVertex;
 use crate::integrator::upg::merge::Tentative;
