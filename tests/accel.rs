@@ -12,7 +12,8 @@ use vmerge::frame::Frame;
 use vmerge::sampling::{cosine_hemisphere, uniform_sphere, Rng, Stream};
 
 /// A wavy heightfield (shared vertices, so rays can hit shared edges), two boxes standing on it
-/// and four spheres, one of them intersecting the ground.
+/// and four spheres, one of them intersecting the ground; the triangles in five groups of
+/// uneven sizes (the ground cut in three, a box each).
 fn test_geometry() -> Geometry {
     let mut g = Geometry::default();
     let n = 40u32;
@@ -37,6 +38,7 @@ fn test_geometry() -> Geometry {
         (Vec3::new(-0.7, 0.5, 0.2), 0.5),
         (Vec3::new(0.8, 0.3, -0.5), 0.3),
     ] {
+        g.group_starts.push(g.triangles.len() as u32);
         let base = g.positions.len() as u32;
         for k in 0..8 {
             let s = Vec3::new(
@@ -66,7 +68,16 @@ fn test_geometry() -> Geometry {
     ] {
         g.spheres.push(Sphere { center, radius });
     }
+    g.group_starts.splice(0..0, [1, 2 * n * n / 3 + 1]);
     g
+}
+
+/// The group of a hit's triangle counted from the geometry's group starts; zero for spheres.
+fn expected_group(g: &Geometry, primitive: Primitive) -> u32 {
+    match primitive {
+        Primitive::Triangle(i) => g.group_starts.iter().filter(|&&s| s <= i).count() as u32,
+        Primitive::Sphere(_) => 0,
+    }
 }
 
 /// The 100,000 rays: random, aimed at triangle edges and vertices, starting on surfaces, and
@@ -184,11 +195,15 @@ fn same_hit(g: &Geometry, a: Option<Hit>, b: Option<Hit>) -> bool {
         (Some(a), Some(b)) => {
             let t_ok = (a.t - b.t).abs() <= 1e-4 * a.t.abs().max(1.0);
             let same_normal = a.ng.normalize().dot(b.ng.normalize()) > 1.0 - 1e-4;
-            t_ok && if a.primitive == b.primitive {
-                same_normal
-            } else {
-                shares_vertex(g, a.primitive, b.primitive)
-            }
+            let groups_ok = [a, b]
+                .iter()
+                .all(|h| h.group == expected_group(g, h.primitive));
+            t_ok && groups_ok
+                && if a.primitive == b.primitive {
+                    same_normal
+                } else {
+                    shares_vertex(g, a.primitive, b.primitive)
+                }
         }
         _ => false,
     }
@@ -341,6 +356,23 @@ fn out_of_range_indices_are_rejected() {
             "{kind:?}: {:?}",
             result.err()
         );
+    }
+}
+
+/// Group starts must leave every group a triangle, in order.
+#[test]
+fn groups_out_of_order_are_rejected() {
+    for starts in [vec![0], vec![5, 5], vec![7, 3], vec![3224], vec![1, 4000]] {
+        let mut g = test_geometry();
+        g.group_starts = starts.clone();
+        for kind in [AccelKind::Bvh, AccelKind::default_kind()] {
+            let result = accel::build(kind, &g);
+            assert!(
+                matches!(result, Err(vmerge::accel::AccelError::InvalidGeometry(_))),
+                "{kind:?}, starts {starts:?}: {:?}",
+                result.err()
+            );
+        }
     }
 }
 

@@ -8,7 +8,7 @@ use common::{assert_agree, assert_means_agree, options, render_stats, PixelStats
 use glam::{Vec2, Vec3};
 use std::path::Path;
 use std::sync::Arc;
-use vmerge::accel::{self, Accel, AccelKind, Alpha, Geometry, Primitive, Ray, TriangleAlpha};
+use vmerge::accel::{self, Accel, AccelKind, Alpha, Geometry, Hit, Primitive, Ray, TriangleAlpha};
 use vmerge::color::Rgb;
 use vmerge::options::{RenderOptions, Technique};
 use vmerge::sampling::{Rng, Stream};
@@ -23,7 +23,8 @@ fn accels() -> Vec<AccelKind> {
 }
 
 /// A unit quad at z = 1 (uv = its x and y) cut out by `alpha`, triangles 0 and 1, in front of
-/// an opaque quad at z = 2, triangles 2 and 3.
+/// an opaque quad at z = 2, triangles 2 and 3; in groups that mix cut-out and opaque triangles,
+/// [`WINDOW_GROUPS`].
 fn window(alpha: Alpha) -> Geometry {
     let mut g = Geometry::default();
     for (z, lo, hi) in [(1.0, 0.0, 1.0), (2.0, -1.0, 2.0)] {
@@ -41,8 +42,12 @@ fn window(alpha: Alpha) -> Geometry {
         };
         g.cutouts.set(t, alpha);
     }
+    g.group_starts = vec![1, 3];
     g
 }
+
+/// The group of each of the window's triangles.
+const WINDOW_GROUPS: [u32; 4] = [0, 1, 1, 2];
 
 /// A 4 x 4 alpha texture, open and closed texels and two fractional ones; mean 0.421875.
 fn checker() -> Alpha {
@@ -71,6 +76,19 @@ fn rays(n: usize) -> Vec<Ray> {
 /// short of the back quad, and both in packets of 8.
 fn passes(a: &dyn Accel, rays: &[Ray]) -> [Vec<bool>; 4] {
     let through = |hit: Option<vmerge::accel::Hit>| {
+        if let Some(Hit {
+            primitive: Primitive::Triangle(t),
+            group,
+            ..
+        }) = hit
+        {
+            assert_eq!(
+                group,
+                WINDOW_GROUPS[t as usize],
+                "{}: triangle {t}",
+                a.name()
+            );
+        }
         matches!(hit.map(|h| h.primitive), Some(Primitive::Triangle(2 | 3)))
     };
     let short = |r: &Ray| Ray { tmax: 1.5, ..*r };

@@ -12,7 +12,7 @@
 //! Triangles use the watertight test of Woop, Benthin and Wald (2013), as pbrt-v4 does, so rays
 //! through shared edges and vertices never slip between two triangles.
 
-use super::{Accel, AccelError, Cutouts, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
+use super::{group_of, Accel, AccelError, Cutouts, Geometry, Hit, Primitive, Ray, Sphere, PACKET};
 use glam::{Vec3, Vec4};
 
 /// Axis-aligned box.
@@ -116,6 +116,8 @@ pub struct Bvh {
     sphere_order: Vec<u32>,
     spheres: Vec<Sphere>,
     cutouts: Cutouts,
+    /// [`Geometry::group_starts`], to name a hit's group.
+    group_starts: Vec<u32>,
 }
 
 /// The closest hit so far: a lane of a leaf or a sphere.
@@ -139,6 +141,7 @@ impl Bvh {
                 "{count} primitives, more than the {MAX_PRIMITIVES} the BVH addresses"
             )));
         }
+        geometry.check_groups()?;
         let mut prims: Vec<BuildPrim> = Vec::with_capacity(count);
         for (i, tri) in geometry.triangles.iter().enumerate() {
             if tri.iter().any(|&v| v as usize >= geometry.positions.len()) {
@@ -185,6 +188,7 @@ impl Bvh {
             sphere_order: Vec::new(),
             spheres: geometry.spheres.clone(),
             cutouts: geometry.cutouts.clone(),
+            group_starts: geometry.group_starts.clone(),
         };
         if !prims.is_empty() {
             build_recursive(&mut prims, 0, 0, &mut binary);
@@ -401,9 +405,11 @@ impl Bvh {
                 let [a, b, c] = leaf
                     .vertices
                     .map(|p| Vec3::new(p[0][lane], p[1][lane], p[2][lane]));
+                let triangle = leaf.triangles[lane];
                 Hit {
                     t,
-                    primitive: Primitive::Triangle(leaf.triangles[lane]),
+                    primitive: Primitive::Triangle(triangle),
+                    group: group_of(&self.group_starts, triangle),
                     u,
                     v,
                     ng: (b - a).cross(c - a),

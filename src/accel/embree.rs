@@ -1,8 +1,9 @@
 //! The Embree backend: the only file that calls Embree (through `embree-sys`).
 //!
 //! One device per scene with an error callback that records Embree's errors so they surface
-//! as [`AccelError`]s; the triangle soup as one triangle geometry over shared buffers, the
-//! spheres as one sphere-point geometry, or, when there are only a few, tested by vmerge
+//! as [`AccelError`]s; the triangle soup as one triangle geometry per group over shared buffers
+//! (a geometry's id is its group's number, so a hit names its group and triangle without a
+//! table; Embree still builds one BVH over all of them), the spheres as one sphere-point geometry, or, when there are only a few, tested by vmerge
 //! beside Embree's traversal ([`SphereTests`]); MEDIUM build quality (shared/notes/embree.md:
 //! HIGH costs several times the build for ~13% faster traversal). Speaks Embree 3's and 4's
 //! APIs (`cfg(embree3)` / `cfg(embree4)`, from the version embree-sys found): only the ray
@@ -11,9 +12,12 @@
 //! Cut-out triangles (`alpha.rs`) form a geometry of their own whose intersection and
 //! occlusion filter functions drop the hits their alpha removes, for single rays and packets
 //! alike; the opaque triangles stay in a geometry without filters, so they cost what they did.
+//! A scene with cut-outs keeps its opaque triangles in one geometry and finds a hit's group
+//! from the group starts.
 
 use super::{
-    sphere_roots, Accel, AccelError, Cutouts, Geometry, Hit, Primitive, Ray, Sphere, PACKET,
+    group_of, sphere_roots, Accel, AccelError, Cutouts, Geometry, Hit, Primitive, Ray, Sphere,
+    PACKET,
 };
 use embree_sys as sys;
 use glam::Vec3;
@@ -131,9 +135,14 @@ pub struct EmbreeScene {
     /// The cut-out triangles.
     _cutout_indices: Vec<[u32; 3]>,
     _spheres: Vec<[f32; 4]>,
-    /// The opaque geometry's triangles by primitive id; empty where the ids are the
-    /// triangles' own (a scene without cut-outs).
+    /// Without cut-outs, the first triangle of each group, by geometry id (the group's
+    /// number); empty with cut-outs.
+    group_first: Vec<u32>,
+    /// With cut-outs, the opaque geometry's triangles by primitive id.
     opaque_triangles: Vec<u32>,
+    /// [`Geometry::group_starts`], for the groups of hits on the geometries of a scene with
+    /// cut-outs.
+    group_starts: Vec<u32>,
     /// Read by the filter functions through Embree: boxed, so its address is stable.
     filter: Box<CutoutFilter>,
     /// The spheres Embree holds, to make their hits exact; empty when vmerge tests them.
@@ -170,6 +179,7 @@ impl EmbreeScene {
         spheres: SphereTests,
     ) -> Result<Self, AccelError> {
         check_indices(geometry)?;
+        geometry.check_groups()?;
         let errors = Box::<ErrorLog>::default();
         let config = std::ffi::CString::new(config).map_err(|_| AccelError::Embree {
             code: 0,
@@ -227,7 +237,9 @@ impl EmbreeScene {
                 indices(&opaque_triangles)
             },
             _cutout_indices: indices(&cutout_triangles),
+            group_first: Vec::new(),
             opaque_triangles,
+            group_starts: geometry.group_starts.clone(),
             filter: Box::new(CutoutFilter {
                 triangles: cutout_triangles,
                 cutouts: geometry.cutouts.clone(),
@@ -249,7 +261,19 @@ impl EmbreeScene {
         unsafe {
             sys::rtcSetSceneBuildQuality(scene, sys::RTCBuildQuality_RTC_BUILD_QUALITY_MEDIUM)
         };
-        if !this._indices.is_empty() {
+        if geometry.cutouts.is_empty() {
+            for group in geometry.groups() {
+                let triangles = &this._indices[group.start as usize..group.end as usize];
+                let id = this.attach_triangles(triangles, false)?;
+                if id as usize != this.group_first.len() {
+                    return Err(AccelError::Embree {
+                        code: 0,
+                        message: format!("group {} got geometry id {id}", this.group_first.len()),
+                    });
+                }
+                this.group_first.push(group.start);
+            }
+        } else if !this._indices.is_empty() {
             this.triangle_geometry = this.attach_triangles(&this._indices, false)?;
         }
         if !this._cutout_indices.is_empty() {
@@ -391,29 +415,24 @@ impl EmbreeScene {
             v,
             ng,
         } = h;
-        if geom_id == self.triangle_geometry {
-            let triangle = if self.opaque_triangles.is_empty() {
-                prim_id
-            } else {
-                self.opaque_triangles[prim_id as usize]
-            };
-            // Embree's Ng (same winding as the Hit contract) rather than one recomputed from
-            // the vertices: reading those again is a cache miss on large meshes.
-            Some(Hit {
-                t,
-                primitive: Primitive::Triangle(triangle),
-                u,
-                v,
-                ng,
-            })
+        // Embree's Ng (same winding as the Hit contract) rather than one recomputed from the
+        // vertices: reading those again is a cache miss on large meshes.
+        let triangle = |triangle: u32, group: u32| Hit {
+            t,
+            primitive: Primitive::Triangle(triangle),
+            group,
+            u,
+            v,
+            ng,
+        };
+        if let Some(&first) = self.group_first.get(geom_id as usize) {
+            Some(triangle(first + prim_id, geom_id))
+        } else if geom_id == self.triangle_geometry {
+            let i = self.opaque_triangles[prim_id as usize];
+            Some(triangle(i, group_of(&self.group_starts, i)))
         } else if geom_id == self.cutout_geometry {
-            Some(Hit {
-                t,
-                primitive: Primitive::Triangle(self.filter.triangles[prim_id as usize]),
-                u,
-                v,
-                ng,
-            })
+            let i = self.filter.triangles[prim_id as usize];
+            Some(triangle(i, group_of(&self.group_starts, i)))
         } else if geom_id == self.sphere_geometry {
             Some(self.sphere_hit(prim_id, t, ray))
         } else {

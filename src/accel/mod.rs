@@ -2,7 +2,9 @@
 //! file that calls it) and a pure-Rust SAH BVH (`bvh.rs`).
 //!
 //! Geometry is one flat triangle soup plus a list of analytic spheres; a [`Hit`] names its
-//! [`Primitive`] by index into those lists, so the scene maps a hit to its material in O(1).
+//! [`Primitive`] by index into those lists, and a triangle's group (a run of triangles the
+//! scene tells apart, its material), so the scene maps a hit to its material in O(1) without
+//! a per-triangle read.
 //! Triangles may be cut out by an alpha (`alpha.rs`): both backends skip the hits it removes.
 
 use crate::options::OptionName;
@@ -102,6 +104,8 @@ pub struct Hit {
     /// Ray parameter of the hit, in units of the ray's `dir`.
     pub t: f32,
     pub primitive: Primitive,
+    /// The triangle's group ([`Geometry::group_starts`]); zero for spheres.
+    pub group: u32,
     /// Barycentrics of a triangle hit: `p = (1 - u - v) p0 + u p1 + v p2`; zero for spheres.
     pub u: f32,
     pub v: f32,
@@ -111,6 +115,11 @@ pub struct Hit {
     /// (tentative rays, for one) never read them, and normalising costs a tenth of a query on
     /// small scenes; the scene normalises them where it makes a surface point.
     pub ng: Vec3,
+}
+
+/// The group of `triangle` among groups that start at `group_starts` ([`Geometry::group_starts`]).
+pub(crate) fn group_of(group_starts: &[u32], triangle: u32) -> u32 {
+    group_starts.partition_point(|&start| start <= triangle) as u32
 }
 
 /// An analytic sphere.
@@ -128,6 +137,10 @@ pub struct Geometry {
     pub spheres: Vec<Sphere>,
     /// The triangles an alpha cuts out (none by default).
     pub cutouts: Cutouts,
+    /// Where each group of triangles but the first (which starts at triangle 0) starts,
+    /// ascending: consecutive runs that every hit names by number ([`Hit::group`]). Empty: all
+    /// triangles are one group.
+    pub group_starts: Vec<u32>,
 }
 
 impl Geometry {
@@ -138,6 +151,37 @@ impl Geometry {
             self.positions[b as usize],
             self.positions[c as usize],
         ]
+    }
+
+    /// Each group must hold a triangle: starts ascending, within `(0, triangles)`.
+    pub(crate) fn check_groups(&self) -> Result<(), AccelError> {
+        let count = self.triangles.len() as u32;
+        let mut previous = 0;
+        for (i, &start) in self.group_starts.iter().enumerate() {
+            if start <= previous || start >= count {
+                return Err(AccelError::InvalidGeometry(format!(
+                    "group {} starts at triangle {start}, not after {previous} and before {count}",
+                    i + 1
+                )));
+            }
+            previous = start;
+        }
+        Ok(())
+    }
+
+    /// The triangles of each group, in order (none without triangles).
+    pub fn groups(&self) -> impl Iterator<Item = std::ops::Range<u32>> + '_ {
+        let count = self.triangles.len() as u32;
+        let starts = std::iter::once(0).chain(self.group_starts.iter().copied());
+        let ends = self
+            .group_starts
+            .iter()
+            .copied()
+            .chain(std::iter::once(count));
+        starts
+            .zip(ends)
+            .map(|(start, end)| start..end)
+            .filter(|group| !group.is_empty())
     }
 
     /// Axis-aligned bounds `(min, max)` of all primitives; `None` when there are none.
@@ -193,6 +237,7 @@ impl Sphere {
         Hit {
             t,
             primitive: Primitive::Sphere(index),
+            group: 0,
             u: 0.0,
             v: 0.0,
             ng: (ray.at(t) - self.center).normalize(),

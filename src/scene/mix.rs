@@ -77,6 +77,7 @@ mod tests {
         Hit {
             t: 1.0,
             primitive: Primitive::Triangle(triangle),
+            group: 0,
             u,
             v,
             ng: Vec3::Z,

@@ -9,6 +9,7 @@ use crate::frame::{Azimuth, Frame};
 use crate::light::{EnvMapDesc, Lights, SceneBounds, SkyDesc};
 use crate::texture::Texture;
 use glam::{Vec2, Vec3};
+use groups::MaterialGroups;
 use std::path::PathBuf;
 use std::sync::Arc;
 
@@ -16,6 +17,7 @@ mod alpha;
 mod builder;
 mod camera;
 mod error;
+mod groups;
 mod load;
 mod mix;
 pub mod pbrt;
@@ -165,6 +167,9 @@ pub struct Scene {
     pub warnings: Vec<Warning>,
     /// Parallel to `materials`: what every hit asks of its material, answered once here.
     facts: Vec<MaterialFacts>,
+    /// The material of each group of triangles ([`Geometry::group_starts`]: the runs of
+    /// triangles with one material), or [`MaterialGroups::MIXED`].
+    group_materials: Vec<u32>,
 }
 
 /// What each hit asks of its material, from `materials` and `material_textures` when the
@@ -177,6 +182,8 @@ struct MaterialFacts {
     anisotropic: bool,
     /// The albedos where it has no texture.
     albedo: Albedo,
+    /// It emits: its primitives may be lights.
+    emits: bool,
 }
 
 /// Everything but the ray-query structure, from which [`Scene::build`] makes a scene; the
@@ -208,8 +215,9 @@ pub struct SceneParts {
 
 impl Scene {
     /// Builds the lights (emissive primitives, the given point and directional lights, the sky)
-    /// and the chosen ray-query backend.
-    pub fn build(parts: SceneParts, accel_kind: AccelKind) -> Result<Scene, SceneError> {
+    /// and the chosen ray-query backend, over the triangles grouped by material (replacing any
+    /// group starts `parts` has).
+    pub fn build(mut parts: SceneParts, accel_kind: AccelKind) -> Result<Scene, SceneError> {
         let (min, max) = parts.geometry.bounds().ok_or(SceneError::NoGeometry {
             file: parts.source.clone(),
             dropped: parts.dropped_triangles,
@@ -237,6 +245,8 @@ impl Scene {
                 file: parts.source.clone(),
             });
         }
+        let groups = MaterialGroups::of(&parts.triangle_materials);
+        parts.geometry.group_starts = groups.starts;
         let accel =
             accel::build(accel_kind, &parts.geometry).map_err(|source| SceneError::Accel {
                 file: parts.source.clone(),
@@ -250,6 +260,7 @@ impl Scene {
                 textured: *textures != MaterialTextures::default(),
                 anisotropic: m.kind.is_anisotropic(),
                 albedo: Albedo::of(&m.kind),
+                emits: !m.emission.is_black(),
             })
             .collect();
         Ok(Scene {
@@ -272,6 +283,7 @@ impl Scene {
             inputs: parts.inputs,
             warnings: parts.warnings,
             facts,
+            group_materials: groups.materials,
         })
     }
 
@@ -290,11 +302,7 @@ impl Scene {
 
     /// Whether a backend hit lies on a mirror or glass surface.
     pub fn hits_delta_surface(&self, hit: &Hit) -> bool {
-        let material = match hit.primitive {
-            Primitive::Triangle(i) => self.triangle_materials[i as usize],
-            Primitive::Sphere(i) => self.sphere_materials[i as usize],
-        };
-        let material = self.resolve(material, hit);
+        let material = self.resolve(self.primitive_material(hit), hit);
         let textures = self.material_textures[material as usize];
         let kind = &self.material(material).kind;
         if textures.roughness.is_none() && textures.vroughness.is_none() {
@@ -303,6 +311,18 @@ impl Scene {
         // A roughness texture may make the surface smooth at some points only.
         kind.with_albedo(self.albedo(material, self.hit_uv(hit)))
             .is_delta()
+    }
+
+    /// The material the scene gives the primitive of `hit` (a mix not yet resolved).
+    #[inline]
+    fn primitive_material(&self, hit: &Hit) -> u32 {
+        match hit.primitive {
+            Primitive::Triangle(i) => match self.group_materials.get(hit.group as usize) {
+                Some(&m) if m != MaterialGroups::MIXED => m,
+                _ => self.triangle_materials[i as usize],
+            },
+            Primitive::Sphere(i) => self.sphere_materials[i as usize],
+        }
     }
 
     /// The material at the point of `hit` for the material `material` of its primitive: a
@@ -350,7 +370,8 @@ impl Scene {
         let anisotropic = |material: u32| self.facts[material as usize].anisotropic;
         let (material, light, ns, uv, dpdu) = match hit.primitive {
             Primitive::Triangle(i) => {
-                let material = self.resolve(self.triangle_materials[i as usize], &hit);
+                let base = self.primitive_material(&hit);
+                let material = self.resolve(base, &hit);
                 let uv = if textured(material) {
                     self.triangle_uv(i, &hit)
                 } else {
@@ -361,9 +382,15 @@ impl Scene {
                 } else {
                     Vec3::ZERO
                 };
+                // Only emitting materials have lights: the others skip the per-triangle table.
+                let light = if self.facts[base as usize].emits {
+                    self.lights.triangle_light(i)
+                } else {
+                    None
+                };
                 (
                     material,
-                    self.lights.triangle_light(i),
+                    light,
                     self.triangle_shading_normal(i, &hit, ng),
                     uv,
                     dpdu,
