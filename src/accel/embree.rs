@@ -403,38 +403,28 @@ impl EmbreeScene {
         }
     }
 
-    /// The [`Hit`] of Embree's answer for `ray`. Inlined for the common triangle case, the
-    /// sphere case kept out of line: this runs once per ray and lane.
-    #[inline]
+    /// The [`Hit`] of Embree's answer for `ray`. Inlined for the common case, a triangle of a
+    /// group's geometry; the rest (scenes with cut-outs, spheres) kept out of line: this runs
+    /// once per ray and lane.
+    #[inline(always)]
     fn hit(&self, h: RawHit, ray: &Ray) -> Option<Hit> {
-        let RawHit {
-            geom_id,
-            prim_id,
-            t,
-            u,
-            v,
-            ng,
-        } = h;
-        // Embree's Ng (same winding as the Hit contract) rather than one recomputed from the
-        // vertices: reading those again is a cache miss on large meshes.
-        let triangle = |triangle: u32, group: u32| Hit {
-            t,
-            primitive: Primitive::Triangle(triangle),
-            group,
-            u,
-            v,
-            ng,
-        };
-        if let Some(&first) = self.group_first.get(geom_id as usize) {
-            Some(triangle(first + prim_id, geom_id))
-        } else if geom_id == self.triangle_geometry {
-            let i = self.opaque_triangles[prim_id as usize];
-            Some(triangle(i, group_of(&self.group_starts, i)))
-        } else if geom_id == self.cutout_geometry {
-            let i = self.filter.triangles[prim_id as usize];
-            Some(triangle(i, group_of(&self.group_starts, i)))
-        } else if geom_id == self.sphere_geometry {
-            Some(self.sphere_hit(prim_id, t, ray))
+        match self.group_first.get(h.geom_id as usize) {
+            Some(&first) => Some(h.triangle(first + h.prim_id, h.geom_id)),
+            None => self.other_hit(h, ray),
+        }
+    }
+
+    /// [`EmbreeScene::hit`] on the opaque or cut-out geometry of a scene with cut-outs, or on
+    /// a sphere.
+    #[inline(never)]
+    fn other_hit(&self, h: RawHit, ray: &Ray) -> Option<Hit> {
+        let triangle = |i: u32| Some(h.triangle(i, group_of(&self.group_starts, i)));
+        if h.geom_id == self.triangle_geometry {
+            triangle(self.opaque_triangles[h.prim_id as usize])
+        } else if h.geom_id == self.cutout_geometry {
+            triangle(self.filter.triangles[h.prim_id as usize])
+        } else if h.geom_id == self.sphere_geometry {
+            Some(self.sphere_hit(h.prim_id, h.t, ray))
         } else {
             None
         }
@@ -462,7 +452,7 @@ impl EmbreeScene {
             .any(|sphere| sphere.first_hit(ray, ray.tmax).is_some())
     }
 
-    #[inline(never)]
+    #[inline]
     fn sphere_hit(&self, prim_id: u32, t: f32, ray: &Ray) -> Hit {
         // Embree's single-ray and packet sphere tests round differently; the exact root
         // nearest Embree's makes both (and the Rust BVH) report the same bits.
@@ -487,6 +477,23 @@ struct RawHit {
     v: f32,
     /// Embree's unnormalised geometric normal.
     ng: Vec3,
+}
+
+impl RawHit {
+    /// The hit on triangle `triangle` of group `group`, with Embree's Ng (same winding as the
+    /// [`Hit`] contract) rather than one recomputed from the vertices: reading those again is
+    /// a cache miss on large meshes.
+    #[inline(always)]
+    fn triangle(&self, triangle: u32, group: u32) -> Hit {
+        Hit {
+            t: self.t,
+            primitive: Primitive::Triangle(triangle),
+            group,
+            u: self.u,
+            v: self.v,
+            ng: self.ng,
+        }
+    }
 }
 
 fn rtc_ray(ray: &Ray) -> sys::RTCRay {
