@@ -3,11 +3,12 @@
 //! One device per scene with an error callback that records Embree's errors so they surface
 //! as [`AccelError`]s; the triangle soup as one triangle geometry per group over shared buffers
 //! (a geometry's id is its group's number, so a hit names its group and triangle without a
-//! table; Embree still builds one BVH over all of them), the spheres as one sphere-point geometry, or, when there are only a few, tested by vmerge
-//! beside Embree's traversal ([`SphereTests`]); MEDIUM build quality (shared/notes/embree.md:
-//! HIGH costs several times the build for ~13% faster traversal). Speaks Embree 3's and 4's
-//! APIs (`cfg(embree3)` / `cfg(embree4)`, from the version embree-sys found): only the ray
-//! queries differ, in `query`; both versions are asked the same questions.
+//! table; Embree still builds one BVH over all of them), the spheres as one sphere-point
+//! geometry, or, when there are only a few, tested by vmerge beside Embree's traversal
+//! ([`SphereTests`]); MEDIUM build quality (shared/notes/embree.md: HIGH costs several times
+//! the build for ~13% faster traversal). Speaks Embree 3's and 4's APIs (`cfg(embree3)` /
+//! `cfg(embree4)`, from the version embree-sys found): only the ray queries differ, in `query`;
+//! both versions are asked the same questions.
 //!
 //! Cut-out triangles (`alpha.rs`) form a geometry of their own whose intersection and
 //! occlusion filter functions drop the hits their alpha removes, for single rays and packets
