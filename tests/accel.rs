@@ -349,11 +349,16 @@ fn out_of_range_indices_are_rejected() {
         triangles: vec![[0, 1, 2]],
         ..Default::default()
     };
+    assert_invalid(&g, "a vertex index out of range");
+}
+
+/// Both backends refuse `g` as invalid geometry.
+fn assert_invalid(g: &Geometry, what: &str) {
     for kind in [AccelKind::Bvh, AccelKind::default_kind()] {
-        let result = accel::build(kind, &g);
+        let result = accel::build(kind, g);
         assert!(
             matches!(result, Err(vmerge::accel::AccelError::InvalidGeometry(_))),
-            "{kind:?}: {:?}",
+            "{kind:?}, {what}: {:?}",
             result.err()
         );
     }
@@ -365,14 +370,7 @@ fn groups_out_of_order_are_rejected() {
     for starts in [vec![0], vec![5, 5], vec![7, 3], vec![3224], vec![1, 4000]] {
         let mut g = test_geometry();
         g.group_starts = starts.clone();
-        for kind in [AccelKind::Bvh, AccelKind::default_kind()] {
-            let result = accel::build(kind, &g);
-            assert!(
-                matches!(result, Err(vmerge::accel::AccelError::InvalidGeometry(_))),
-                "{kind:?}, starts {starts:?}: {:?}",
-                result.err()
-            );
-        }
+        assert_invalid(&g, &format!("group starts {starts:?}"));
     }
 }
 

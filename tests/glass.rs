@@ -100,10 +100,8 @@ fn pane_scene(accel: AccelKind) -> Scene {
     materials.extend([1, 1]);
     let parts = SceneParts {
         source: PathBuf::from("thin double-walled pane"),
-        source_hash: String::new(),
         geometry,
         triangle_materials: materials,
-        sphere_materials: Vec::new(),
         materials: vec![
             Material {
                 name: "glass".into(),
@@ -119,14 +117,6 @@ fn pane_scene(accel: AccelKind) -> Scene {
             },
         ],
         material_textures: vec![Default::default(); 2],
-        mixes: Vec::new(),
-        textures: Vec::new(),
-        shading: Default::default(),
-        point_and_directional: Vec::new(),
-        sky: None,
-        env_map: None,
-        inputs: Vec::new(),
-        warnings: Vec::new(),
         cameras: vec![CameraDesc {
             name: "pane".into(),
             position: Vec3::ZERO,
@@ -141,7 +131,7 @@ fn pane_scene(accel: AccelKind) -> Scene {
             max_path_length: MAX_PATH_LENGTH,
             radius: None,
         },
-        dropped_triangles: 0,
+        ..Default::default()
     };
     Scene::build(parts, accel).unwrap_or_else(|e| panic!("{e}"))
 }

@@ -43,24 +43,14 @@ fn grid(material: impl Fn(u32) -> u32, accel: AccelKind) -> Scene {
     };
     let parts = SceneParts {
         source: PathBuf::from("grid"),
-        source_hash: String::new(),
         triangle_materials: (0..geometry.triangles.len() as u32).map(material).collect(),
         geometry,
-        sphere_materials: Vec::new(),
         materials: vec![
             lambert("grey", Rgb::splat(0.5), Rgb::BLACK),
             lambert("red", Rgb::new(0.8, 0.1, 0.1), Rgb::BLACK),
             lambert("lamp", Rgb::BLACK, Rgb::WHITE),
         ],
         material_textures: vec![Default::default(); 3],
-        mixes: Vec::new(),
-        textures: Vec::new(),
-        shading: Default::default(),
-        point_and_directional: Vec::new(),
-        sky: None,
-        env_map: None,
-        inputs: Vec::new(),
-        warnings: Vec::new(),
         cameras: vec![CameraDesc {
             name: "above".into(),
             position: Vec3::new(0.5, 2.0, 0.5),
@@ -75,7 +65,7 @@ fn grid(material: impl Fn(u32) -> u32, accel: AccelKind) -> Scene {
             max_path_length: 4,
             radius: None,
         },
-        dropped_triangles: 0,
+        ..Default::default()
     };
     Scene::build(parts, accel).unwrap_or_else(|e| panic!("{e}"))
 }

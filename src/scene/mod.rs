@@ -188,6 +188,7 @@ struct MaterialFacts {
 
 /// Everything but the ray-query structure, from which [`Scene::build`] makes a scene; the
 /// loader fills it from files and tests fill it by hand.
+#[derive(Default)]
 pub struct SceneParts {
     pub source: PathBuf,
     pub source_hash: String,
