@@ -21,11 +21,10 @@ impl CameraRays {
     /// Draws each pixel's jitter, makes its camera ray and traces the rays as one packet.
     pub fn trace(ctx: &RenderContext, iteration: u64, first: usize, len: usize) -> Self {
         debug_assert!((1..=PACKET).contains(&len));
-        let (seed, kind) = (ctx.options.seed, ctx.options.sampler);
         // Lanes past `len` repeat the last pixel and stay inactive.
         let pixel = |lane: usize| first + lane.min(len - 1);
         let mut samplers: [Sampler; PACKET] =
-            std::array::from_fn(|lane| Sampler::eye(kind, seed, iteration, pixel(lane) as u64));
+            std::array::from_fn(|lane| eye_sampler(ctx, iteration, pixel(lane)));
         let rays: [Ray; PACKET] =
             std::array::from_fn(|lane| camera_ray(ctx, pixel(lane), &mut samplers[lane]));
         let mut hits = [None; PACKET];
@@ -51,11 +50,20 @@ pub fn camera_ray_traced(
     iteration: u64,
     pixel: usize,
 ) -> (Sampler, Ray, Option<SurfaceHit>) {
-    let (seed, kind) = (ctx.options.seed, ctx.options.sampler);
-    let mut sampler = Sampler::eye(kind, seed, iteration, pixel as u64);
+    let mut sampler = eye_sampler(ctx, iteration, pixel);
     let ray = camera_ray(ctx, pixel, &mut sampler);
     let hit = ctx.scene.intersect(&ray);
     (sampler, ray, hit)
+}
+
+/// The eye sampler of `pixel` (a row-major index) in `iteration`.
+fn eye_sampler(ctx: &RenderContext, iteration: u64, pixel: usize) -> Sampler {
+    Sampler::eye(
+        ctx.options.sampler,
+        ctx.options.seed,
+        iteration,
+        pixel as u64,
+    )
 }
 
 /// The camera ray of `pixel` (a row-major index), through the point of it that the pixel's eye
