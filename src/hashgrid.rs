@@ -16,6 +16,7 @@
 //! The cells are those of the world grid (floor(p / side)), whatever the points' extent, so the
 //! order of query results depends only on the points, never on threads.
 
+use crate::prefetch::{prefetch, prefetch_lines};
 use glam::{Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -185,6 +186,17 @@ impl GroupedPoints {
         self.groups[slot / GROUP].index[slot % GROUP]
     }
 
+    /// Prefetches the groups of the slots `range`, a cache line each.
+    #[inline]
+    pub fn prefetch(&self, range: std::ops::Range<usize>) {
+        if !range.is_empty() {
+            prefetch_lines(
+                &self.groups,
+                range.start / GROUP..(range.end - 1) / GROUP + 1,
+            );
+        }
+    }
+
     /// Calls `visit(slot, distance_squared)` for the points of the slots `range` within
     /// distance sqrt(`radius_sq`) of `q`, in slot order. Sixteen groups (64 points) at a time,
     /// four points to a SIMD operation, into a bit mask of the points inside, so no branch
@@ -254,7 +266,9 @@ impl Within {
 
 /// Rows of runs a query reads at most: triplets' 3 x 3.
 const MAX_ROWS: usize = 9;
-/// A query whose table reads have been issued ([`HashGrid::begin_query`]), to be scanned later.
+
+/// A query whose table slots are being fetched ([`HashGrid::begin_query`]), for
+/// [`HashGrid::locate`] to read.
 #[derive(Clone, Copy, Debug)]
 pub struct BegunQuery {
     q: Vec3,
@@ -262,8 +276,6 @@ pub struct BegunQuery {
     /// Per row, its run's key.
     keys: [u64; MAX_ROWS],
     rows: Rows,
-    /// Per row, the (key, range) words of the slot its run hashes to, as read at the start.
-    words: [(u64, u64); MAX_ROWS],
 }
 
 /// Which cells a begun query reads.
@@ -274,8 +286,18 @@ enum Rows {
     /// The sphere touches one cell more along an axis: disjoint runs per row, looked up
     /// when scanned.
     Irregular,
-    /// The runs x runs rows of runs, along y then z, their slots read.
+    /// The runs x runs rows of runs, along y then z, their slots prefetched.
     Probed(CellRuns),
+}
+
+/// A query whose ranges are known and whose points are being fetched ([`HashGrid::locate`]),
+/// for [`HashGrid::query_kept_slot_batches_located`] to scan.
+#[derive(Clone, Debug)]
+pub struct LocatedQuery {
+    q: Vec3,
+    within: Within,
+    /// `None` for the irregular rows, looked up when scanned; otherwise the ranges of the rows.
+    ranges: Option<([std::ops::Range<u32>; MAX_ROWS], usize)>,
 }
 
 /// A grid over no points; [`HashGrid::rebuild`] fills it.
@@ -527,11 +549,10 @@ impl HashGrid {
         }
     }
 
-    /// Starts a query of the points within `within` of `q`: reads the table slots its runs hash
-    /// to and returns at once, for [`Self::query_kept_slot_batches_begun`] to scan later. The
-    /// loads are plain ones whose words the query keeps, so where the caller begins a query
-    /// before other work (an eye vertex's connections, which wait on Embree), their cache
-    /// misses (the table is tens of megabytes) overlap that work instead of being waited for.
+    /// Starts a query of the points within `within` of `q`: prefetches the table slots its
+    /// runs hash to and returns at once. Where the caller begins a query before other work (an
+    /// eye vertex's light sampling, which waits on Embree), the slots' cache misses (the table
+    /// is tens of megabytes) overlap that work instead of being waited for.
     #[inline]
     pub fn begin_query(&self, q: Vec3, within: Within) -> BegunQuery {
         let mut query = BegunQuery {
@@ -539,7 +560,6 @@ impl HashGrid {
             within,
             keys: [0; MAX_ROWS],
             rows: Rows::Nothing,
-            words: [(EMPTY, 0); MAX_ROWS],
         };
         let Some((lo, hi)) = self.cell_bounds(q, within.reach) else {
             return query;
@@ -551,32 +571,55 @@ impl HashGrid {
         query.rows = Rows::Probed(self.runs);
         let first = self.key(lo);
         let run = self.runs.len() as u64;
-        let mut row = 0;
-        for z in 0..run {
-            for y in 0..run {
-                let key = first + y * self.stride_y + z * self.stride_z;
-                let s = &self.table[self.slot_of(key)];
-                query.keys[row] = key;
-                query.words[row] = (s.key.load(Relaxed), s.range.load(Relaxed));
-                row += 1;
-            }
+        for (row, key) in query.keys[..self.runs.rows()].iter_mut().enumerate() {
+            let (y, z) = (row as u64 % run, row as u64 / run);
+            *key = first + y * self.stride_y + z * self.stride_z;
+            prefetch(&self.table[self.slot_of(*key)]);
         }
         query
     }
 
-    /// The slots of a begun query's points, in [`Self::query_slots`]'s order, a batch at a time
-    /// as [`Self::query_slot_batches`] gives them, less those `keep` rejects. `keep` is asked
-    /// about each slot as the scan finds it: a caller whose `keep` reads the point's record
-    /// starts that read (a cache miss, most often) while the scan goes on. Before any range is
-    /// scanned, `touch` is called with each: a caller that reads its records of the range
-    /// there starts all those misses at once, with the position groups', instead of one after
-    /// the other as the scan finds the points.
+    /// The second step of a begun query: reads its table slots (loads that wait, for as long
+    /// as the prefetches have not arrived), prefetches the position groups of each range found
+    /// and hands the range to `prefetch_records`, where a caller prefetches its own records of those
+    /// slots. The misses of the points and records then overlap the work between this and the
+    /// scan (the eye vertex's connections).
     #[inline]
-    pub fn query_kept_slot_batches_begun(
+    pub fn locate(
         &self,
         query: &BegunQuery,
+        mut prefetch_records: impl FnMut(std::ops::Range<usize>),
+    ) -> LocatedQuery {
+        let ranges = match query.rows {
+            Rows::Nothing => Some((Default::default(), 0)),
+            Rows::Irregular => None,
+            Rows::Probed(runs) => {
+                let mut ranges: [std::ops::Range<u32>; MAX_ROWS] = Default::default();
+                for (range, &key) in ranges.iter_mut().zip(&query.keys[..runs.rows()]) {
+                    let found = self.lookup(key);
+                    self.points.prefetch(found.clone());
+                    prefetch_records(found.clone());
+                    *range = found.start as u32..found.end as u32;
+                }
+                Some((ranges, runs.rows()))
+            }
+        };
+        LocatedQuery {
+            q: query.q,
+            within: query.within,
+            ranges,
+        }
+    }
+
+    /// The slots of a located query's points, in [`Self::query_slots`]'s order, a batch at a
+    /// time as [`Self::query_slot_batches`] gives them, less those `keep` rejects. `keep` is
+    /// asked about each slot as the scan finds it: a caller whose `keep` reads the point's
+    /// record starts that read (a cache miss, where not prefetched) while the scan goes on.
+    #[inline]
+    pub fn query_kept_slot_batches_located(
+        &self,
+        query: &LocatedQuery,
         mut keep: impl FnMut(u32) -> bool,
-        mut touch: impl FnMut(std::ops::Range<usize>),
         mut visit: impl FnMut(&[u32]),
     ) {
         let mut batch = [0u32; QUERY_BATCH];
@@ -591,20 +634,11 @@ impl HashGrid {
                 len = 0;
             }
         };
-        match query.rows {
-            Rows::Nothing => {}
-            Rows::Irregular => {
-                self.query_slots_within(query.q, query.within, &mut push);
-            }
-            Rows::Probed(runs) => {
-                let mut ranges: [std::ops::Range<usize>; MAX_ROWS] = Default::default();
-                let ranges = &mut ranges[..runs.rows()];
-                for (row, range) in ranges.iter_mut().enumerate() {
-                    *range = self.probed_range(query, row);
-                    touch(range.clone());
-                }
-                for range in ranges {
-                    let range = std::mem::take(range);
+        match &query.ranges {
+            None => self.query_slots_within(query.q, query.within, &mut push),
+            Some((ranges, rows)) => {
+                for range in &ranges[..*rows] {
+                    let range = range.start as usize..range.end as usize;
                     self.points
                         .scan(range, query.q, query.within.radius_sq, &mut push);
                 }
@@ -612,20 +646,6 @@ impl HashGrid {
         }
         if len > 0 {
             visit(&batch[..len]);
-        }
-    }
-
-    /// The range of a begun query's row, from the slot words read at its start: the run's own
-    /// slot, an empty one, or another run's, past which the lookup probes on.
-    #[inline]
-    fn probed_range(&self, query: &BegunQuery, row: usize) -> std::ops::Range<usize> {
-        let ((found, range), key) = (query.words[row], query.keys[row]);
-        if found == key {
-            Slot::unpack_range(range)
-        } else if found == EMPTY {
-            0..0
-        } else {
-            self.lookup_from(key, (self.slot_of(key) + 1) & (self.table.len() - 1))
         }
     }
 
@@ -1365,9 +1385,9 @@ mod tests {
         );
     }
 
-    /// Begun queries, at the grid's radius and others, in both layouts, visit the slots
-    /// `query_slots_within` finds that `keep` accepts, in its order, and touch ranges holding
-    /// every one of them before visiting any.
+    /// Begun and located queries, at the grid's radius and others, in both layouts, visit the
+    /// slots `query_slots_within` finds that `keep` accepts, in its order, and hand out ranges
+    /// for prefetching that hold every one of them.
     #[test]
     fn begun_queries_match_query() {
         let mut rng = Rng::for_sample(10, 0, 0, Stream::Eye);
@@ -1385,20 +1405,15 @@ mod tests {
                 let expected: Vec<u32> =
                     all.iter().map(|&s| s as u32).filter(|&s| keep(s)).collect();
                 let (mut found, mut touched) = (Vec::new(), Vec::new());
-                let visits = std::cell::Cell::new(0);
-                let query = grid.begin_query(q, within);
-                let touch = |range| {
-                    assert_eq!(visits.get(), 0, "ranges touched before the first visit");
-                    touched.push(range);
-                };
-                grid.query_kept_slot_batches_begun(&query, keep, touch, |batch| {
+                let begun = grid.begin_query(q, within);
+                let query = grid.locate(&begun, |range| touched.push(range));
+                grid.query_kept_slot_batches_located(&query, keep, |batch| {
                     assert!(!batch.is_empty() && batch.len() <= QUERY_BATCH);
                     found.extend_from_slice(batch);
-                    visits.set(visits.get() + 1);
                 });
                 longest = longest.max(expected.len());
                 assert_eq!(found, expected, "query {q}, {runs:?}");
-                if let Rows::Probed(runs) = query.rows {
+                if let Rows::Probed(runs) = begun.rows {
                     probed += 1;
                     assert_eq!(touched.len(), runs.rows());
                     assert!(all.iter().all(|s| touched.iter().any(|r| r.contains(s))));

@@ -17,6 +17,7 @@ pub mod light;
 pub mod memory;
 pub mod metrics;
 pub mod options;
+pub mod prefetch;
 pub mod preview;
 pub mod render;
 pub mod sampling;

@@ -49,6 +49,7 @@ use crate::integrator::subpath::MergeVertex;
 use crate::integrator::upg::merge::Tentative;
 use crate::integrator::IterationStats;
 use crate::options::DensityMis;
+use crate::prefetch::prefetch_lines;
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -67,20 +68,10 @@ pub(super) trait MergeRecords: Sync {
     /// read before the rest.
     fn path_length(&self, slot: u32) -> u32;
     fn vertex(&self, slot: u32) -> MergeVertex;
-    /// Bytes of one record: the layout's stride in memory.
-    const RECORD_BYTES: usize;
-
-    /// Reads the records of `slots` (a grid range, contiguous in memory) ahead of the merge's
-    /// reads of those it keeps, with loads at most a cache line apart: their misses then start
-    /// together, with the scan's, instead of one by one as the scan finds the points. The
-    /// values are kept opaque so the loads stay where they are and are not dropped as unused.
-    #[inline]
-    fn touch(&self, slots: std::ops::Range<usize>) {
-        let step = (64 / Self::RECORD_BYTES).max(1);
-        for slot in slots.step_by(step) {
-            std::hint::black_box(self.path_length(slot as u32));
-        }
-    }
+    /// Prefetches the records of `slots` (a grid range, contiguous in memory), a cache line
+    /// each, so that their misses overlap the work before the merge instead of being waited
+    /// for as the scan finds the points.
+    fn prefetch(&self, slots: std::ops::Range<usize>);
 }
 
 impl MergeRecords for [MergeVertex] {
@@ -94,7 +85,10 @@ impl MergeRecords for [MergeVertex] {
         self[slot as usize]
     }
 
-    const RECORD_BYTES: usize = std::mem::size_of::<MergeVertex>();
+    #[inline]
+    fn prefetch(&self, slots: std::ops::Range<usize>) {
+        prefetch_lines(self, slots);
+    }
 }
 
 /// The vertices an iteration's merges read, in one of the layouts.
@@ -103,6 +97,18 @@ pub(super) enum MergeVertices<'a> {
     Whole(&'a [MergeVertex]),
     Narrow(NarrowVertices<'a>),
     Packed(PackedVertices<'a>),
+}
+
+impl MergeVertices<'_> {
+    /// [`MergeRecords::prefetch`] of the layout at hand.
+    #[inline]
+    pub(super) fn prefetch(&self, slots: std::ops::Range<usize>) {
+        match self {
+            MergeVertices::Whole(v) => v.prefetch(slots),
+            MergeVertices::Narrow(v) => v.prefetch(slots),
+            MergeVertices::Packed(v) => v.prefetch(slots),
+        }
+    }
 }
 
 /// A light vertex as a two-stage merge reads it where neither per-pixel radii nor a density
@@ -162,7 +168,10 @@ impl MergeRecords for NarrowVertices<'_> {
         }
     }
 
-    const RECORD_BYTES: usize = std::mem::size_of::<Narrow>();
+    #[inline]
+    fn prefetch(&self, slots: std::ops::Range<usize>) {
+        prefetch_lines(self.records, slots);
+    }
 }
 
 /// One-stage's packed vertices with what unpacks them.
@@ -183,7 +192,10 @@ impl MergeRecords for PackedVertices<'_> {
         self.records[slot as usize].unpack(self.form)
     }
 
-    const RECORD_BYTES: usize = std::mem::size_of::<Packed>();
+    #[inline]
+    fn prefetch(&self, slots: std::ops::Range<usize>) {
+        prefetch_lines(self.records, slots);
+    }
 }
 
 /// Which MIS quantity besides d^VCM a merge reads ([`VcmWeights::merge`]): where merges compete

@@ -41,7 +41,7 @@ use crate::accel::{Ray, PACKET};
 use crate::bsdf::{Bsdf, TransportMode};
 use crate::color::Rgb;
 use crate::film::add_sample;
-use crate::hashgrid::{BegunQuery, HashGrid, Within};
+use crate::hashgrid::{HashGrid, LocatedQuery, Within};
 use crate::light::Aim;
 use crate::options::{MemoryLayout, RenderOptions, Technique};
 use crate::sampling::Sampler;
@@ -892,14 +892,14 @@ impl<'a> VertexCm<'a> {
 
     /// Merges an eye vertex with the light vertices around it by density estimation (001
     /// eqs. 38-39), not yet normalised by 1 / (pi r^2 n_VM): those `query` (begun at the
-    /// vertex, of the eye sub-path's radius) finds. `gathered` gives the grid and, where the
+    /// vertex, of the eye sub-path's radius, and located) finds. `gathered` gives the grid and, where the
     /// light vertices' MIS quantities are not kept for the eye sub-path's radius, re-runs them.
     fn merge(
         &self,
         w: &VcmWeights,
         state: &SubPath,
         bsdf: &Bsdf,
-        query: &BegunQuery,
+        query: &LocatedQuery,
         gathered: Gathered,
         vertices: &(impl MergeRecords + ?Sized),
     ) -> Rgb {
@@ -910,8 +910,7 @@ impl<'a> VertexCm<'a> {
             let segments = vertices.path_length(slot).saturating_add(state.path_length);
             segments <= max_length && !self.too_short(segments)
         };
-        let touch = |slots| vertices.touch(slots);
-        grid.query_kept_slot_batches_begun(query, within_bounds, touch, |batch| {
+        grid.query_kept_slot_batches_located(query, within_bounds, |batch| {
             for &slot in batch {
                 let lv = vertices.vertex(slot);
                 let eval = bsdf.eval(lv.wo);
@@ -1030,9 +1029,10 @@ impl<'a> VertexCm<'a> {
                     }
                 }
                 state.density = self.density_at(&w, hit.position, &mut state);
-                // The merge's table reads start here, so their cache misses overlap the light
-                // sampling and the connections (their shadow rays) instead of being waited for
-                // in the merge, the first of its chain of dependent misses.
+                // The merge's reads start here, so their chain of dependent cache misses
+                // overlaps the shadow rays instead of being waited for in the merge: the table
+                // slots are prefetched now, the points and records once the light sample's
+                // shadow ray is traced.
                 let merge_query = match (gathered, self.modes.gather) {
                     (Some(gathered), Gather::Density) => Some(
                         gathered
@@ -1044,6 +1044,13 @@ impl<'a> VertexCm<'a> {
                 if self.modes.vc {
                     color += state.throughput
                         * self.light_sampling(&w, &state, &hit, &bsdf, sampler, stats);
+                }
+                let merge_query = merge_query.zip(gathered).map(|(query, gathered)| {
+                    gathered
+                        .grid
+                        .locate(&query, |slots| pass.merge_vertices.prefetch(slots))
+                });
+                if self.modes.vc {
                     let mut index = 0;
                     let connect = |lv: &LightVertex| {
                         if lv.path_length + state.path_length + 1 > max_length {
