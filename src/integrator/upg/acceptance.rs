@@ -377,10 +377,14 @@ impl<'a> AngularBound<'a> {
         )
         .normalize();
         let inside = distance <= cone_radius;
-        let gamma = if inside {
-            0.0
-        } else {
-            (cone_radius / distance).asin()
+        // The cone's half-angle, which only microfacet and delta lobes take (an asin per merge
+        // that lambert and Phong do not pay).
+        let gamma = || {
+            if inside {
+                0.0
+            } else {
+                (cone_radius / distance).asin()
+            }
         };
         let mut parts = [None; 3];
         let (mut p_bound, mut whole) = (0.0, true);
@@ -402,7 +406,7 @@ impl<'a> AngularBound<'a> {
                         };
                         (whole_lobe, 1.0)
                     } else {
-                        NormalsBound::new(lobe, bsdf.wo_local(), axis, gamma)
+                        NormalsBound::new(lobe, bsdf.wo_local(), axis, gamma())
                     };
                     whole &= bound.rect.is_none();
                     (*weight, Draw::Normals(bound), p_b)
@@ -411,7 +415,7 @@ impl<'a> AngularBound<'a> {
                     // All of it or nothing lies in the cone; drawn alone it is not the whole
                     // BSDF.
                     whole = false;
-                    let held = inside || direction.as_dvec3().dot(t) >= gamma.cos();
+                    let held = inside || direction.as_dvec3().dot(t) >= gamma().cos();
                     (
                         *weight,
                         Draw::Delta(*direction),
