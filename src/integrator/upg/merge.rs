@@ -21,6 +21,7 @@ use crate::hashgrid::{kept, HashGrid, Within, QUERY_BATCH};
 use crate::sampling::{Rng, Stream};
 use crate::scene::{Scene, SurfaceHit};
 use glam::Vec3;
+use std::borrow::Cow;
 
 /// A light vertex, by its index, with its MIS quantities re-run for the weights of the eye
 /// sub-path that uses it (per-pixel radii under UPG's clamp or 002's density factors:
@@ -44,11 +45,36 @@ pub struct Gathered<'i> {
 }
 
 impl Gathered<'_> {
-    /// Light vertex `index` as weights `w` take it.
-    fn vertex(&self, w: &VcmWeights, index: usize) -> LightVertex<Deferred> {
+    /// Light vertex `index` as weights `w` take it: the stored one where its MIS quantities
+    /// are the weights' own.
+    fn vertex(&self, w: &VcmWeights, index: usize) -> Cow<'_, LightVertex<Deferred>> {
         match self.reweigh {
-            Some(reweigh) => reweigh(w, index),
-            None => self.vertices[index],
+            Some(reweigh) => Cow::Owned(reweigh(w, index)),
+            None => Cow::Borrowed(&self.vertices[index]),
+        }
+    }
+
+    /// Gathers the light vertices of a query's `batch` that `gathers` keeps, in order, each by
+    /// `gather`. The light vertex `back` steps before each kept one along its sub-path (the
+    /// vertex its merge reads whole) is prefetched first: a merge waits on Embree (its link's
+    /// shadow ray, its tentative rays), so the misses of the later merges' vertices, read at
+    /// random, overlap the earlier merges instead of each being waited for.
+    fn gather_batch(
+        &self,
+        batch: &[u32],
+        gathers: impl FnMut(u32) -> bool,
+        back: usize,
+        mut gather: impl FnMut(usize),
+    ) {
+        let mut found = [0u32; QUERY_BATCH];
+        let mut len = 0;
+        for i in kept(batch, gathers) {
+            self.vertices[i as usize - back].prefetch();
+            found[len] = i;
+            len += 1;
+        }
+        for &i in &found[..len] {
+            gather(i as usize);
         }
     }
 
@@ -135,7 +161,7 @@ impl<'s> UpgMerges<'s> {
         };
         // The eye sub-path's radius: every technique of the path weighs with it.
         gathered.query(w, hit.position, |batch| {
-            kept(batch, gathers).for_each(|i| gather(i as usize));
+            gathered.gather_batch(batch, gathers, 1, &mut gather);
         });
         self.estimate_from(Side::Light, tentative, stats)
     }
@@ -215,7 +241,7 @@ impl<'s> UpgMerges<'s> {
             );
         };
         gathered.query(w, position, |batch| {
-            kept(batch, gathers).for_each(|i| gather(i as usize));
+            gathered.gather_batch(batch, gathers, 0, &mut gather);
         });
         let before = tentative.counters.merges;
         let sum = self.estimate_from(Side::Camera, tentative, stats);
