@@ -581,9 +581,9 @@ impl HashGrid {
 
     /// The second step of a begun query: reads its table slots (loads that wait, for as long
     /// as the prefetches have not arrived), prefetches the position groups of each range found
-    /// and hands the range to `prefetch_records`, where a caller prefetches its own records of those
-    /// slots. The misses of the points and records then overlap the work between this and the
-    /// scan (the eye vertex's connections).
+    /// and hands the range to `prefetch_records`, where a caller prefetches its own records of
+    /// those slots. The misses of the points and records then overlap the work between this and
+    /// the scan (the eye vertex's connections).
     #[inline]
     pub fn locate(
         &self,

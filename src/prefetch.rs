@@ -25,7 +25,8 @@ pub fn prefetch<T>(value: &T) {
 /// Bytes of a cache line on the CPUs a prefetch serves.
 const LINE: usize = 64;
 
-/// Prefetches every cache line the items `range` of `items` occupy, once each.
+/// Prefetches every cache line the items `range` of `items` occupy, once each, for items of at
+/// most a cache line (of larger ones, `line_openers` names only some lines).
 #[inline]
 pub fn prefetch_lines<T>(items: &[T], range: std::ops::Range<usize>) {
     let base = items.as_ptr() as usize;

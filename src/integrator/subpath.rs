@@ -210,8 +210,9 @@ impl<P: Copy> Clone for LightVertex<P> {
 impl<P> LightVertex<P> {
     /// Prefetches the vertex's cache lines (it spans two or three), through three fields that
     /// the compiler's layout puts at its start, less than a line further and at its last byte:
-    /// one in every line whatever the vertex's alignment (checked by
-    /// `every_line_of_a_light_vertex_is_prefetched`, which fails if the layout moves them).
+    /// one in every line whatever the vertex's alignment (checked, for the vertices UPG's gathers
+    /// prefetch, by `upg::merge`'s `every_line_of_a_light_vertex_is_prefetched`, which fails if
+    /// the layout moves them).
     #[inline]
     pub fn prefetch(&self) {
         prefetch(&self.uv);
@@ -512,36 +513,6 @@ impl<P: PendingMis> LightPaths<P> {
         match self.path_ends.get(path..path + 2) {
             Some(&[start, end]) => &self.vertices[start..end],
             _ => &[],
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::super::upg::Deferred;
-    use super::LightVertex;
-    use std::collections::BTreeSet;
-    use std::mem::{offset_of, size_of};
-
-    /// The fields [`LightVertex::prefetch`] goes through name every cache line of a vertex at
-    /// each alignment it can have (a multiple of 4 bytes): a field moved or added, making a gap
-    /// of more than a line between them, fails here.
-    #[test]
-    fn every_line_of_a_light_vertex_is_prefetched() {
-        type V = LightVertex<Deferred>;
-        let size = size_of::<V>();
-        let probes = [
-            offset_of!(V, uv),
-            offset_of!(V, ns),
-            offset_of!(V, after_glossy),
-        ];
-        for start in (0..64).step_by(4) {
-            let named: BTreeSet<usize> = probes.iter().map(|p| (start + p) / 64).collect();
-            let spanned: BTreeSet<usize> = (start / 64..=(start + size - 1) / 64).collect();
-            assert_eq!(
-                named, spanned,
-                "vertex of {size} bytes at {start}: {probes:?}"
-            );
         }
     }
 }

@@ -892,8 +892,9 @@ impl<'a> VertexCm<'a> {
 
     /// Merges an eye vertex with the light vertices around it by density estimation (001
     /// eqs. 38-39), not yet normalised by 1 / (pi r^2 n_VM): those `query` (begun at the
-    /// vertex, of the eye sub-path's radius, and located) finds. `gathered` gives the grid and, where the
-    /// light vertices' MIS quantities are not kept for the eye sub-path's radius, re-runs them.
+    /// vertex, of the eye sub-path's radius, and located) finds. `gathered` gives the grid and,
+    /// where the light vertices' MIS quantities are not kept for the eye sub-path's radius,
+    /// re-runs them.
     fn merge(
         &self,
         w: &VcmWeights,

@@ -501,3 +501,33 @@ impl<'s> Tentative<'s> {
         sum
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::Deferred;
+    use super::LightVertex;
+    use std::collections::BTreeSet;
+    use std::mem::{offset_of, size_of};
+
+    /// The fields [`LightVertex::prefetch`] goes through name every cache line of a vertex the
+    /// gathers read, at each alignment it can have (a multiple of 4 bytes): a field moved or
+    /// added, making a gap of more than a line between them, fails here.
+    #[test]
+    fn every_line_of_a_light_vertex_is_prefetched() {
+        type V = LightVertex<Deferred>;
+        let size = size_of::<V>();
+        let probes = [
+            offset_of!(V, uv),
+            offset_of!(V, ns),
+            offset_of!(V, after_glossy),
+        ];
+        for start in (0..64).step_by(4) {
+            let named: BTreeSet<usize> = probes.iter().map(|p| (start + p) / 64).collect();
+            let spanned: BTreeSet<usize> = (start / 64..=(start + size - 1) / 64).collect();
+            assert_eq!(
+                named, spanned,
+                "vertex of {size} bytes at {start}: {probes:?}"
+            );
+        }
+    }
+}
