@@ -16,7 +16,7 @@
 //! The cells are those of the world grid (floor(p / side)), whatever the points' extent, so the
 //! order of query results depends only on the points, never on threads.
 
-use crate::prefetch::{prefetch, prefetch_lines};
+use crate::prefetch::prefetch;
 use glam::{Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering::Relaxed};
@@ -190,10 +190,9 @@ impl GroupedPoints {
     #[inline]
     pub fn prefetch(&self, range: std::ops::Range<usize>) {
         if !range.is_empty() {
-            prefetch_lines(
-                &self.groups,
-                range.start / GROUP..(range.end - 1) / GROUP + 1,
-            );
+            self.groups[range.start / GROUP..=(range.end - 1) / GROUP]
+                .iter()
+                .for_each(prefetch);
         }
     }
 
@@ -718,13 +717,8 @@ impl HashGrid {
     /// The range of the run `key`, empty if no point lies in it.
     #[inline]
     fn lookup(&self, key: u64) -> std::ops::Range<usize> {
-        self.lookup_from(key, self.slot_of(key))
-    }
-
-    /// [`Self::lookup`] probing from `slot` on.
-    #[inline]
-    fn lookup_from(&self, key: u64, mut slot: usize) -> std::ops::Range<usize> {
         let mask = self.table.len() - 1;
+        let mut slot = self.slot_of(key);
         loop {
             let s = &self.table[slot];
             let found = s.key.load(Relaxed);
