@@ -57,7 +57,6 @@ use super::merge::{Gathered, Tentative, UpgMerges};
 use super::{Deferred, UpgCounters};
 use crate::bsdf::Bsdf;
 use crate::color::Rgb;
-use crate::hashgrid::kept;
 use crate::sampling::Stream;
 use crate::scene::{Scene, SurfaceHit};
 
@@ -118,43 +117,45 @@ impl<'s> Blend<'s> {
             self.upg
                 .keeps(vertices[i as usize].path_length + state.path_length)
         };
-        gathered.grid.query_batches(hit.position, |batch| {
-            for i in kept(batch, within) {
-                let i = i as usize;
-                let lv = &vertices[i];
-                let behind = Neighbour::towards_light(lv.path_length, lv.after_surface);
-                if Gather::Blend.merge_at(behind, Neighbour::Surface) != VmHere::Valid {
-                    continue;
+        // A merge reads the light vertex whole (a density estimate) or its predecessor (UPG),
+        // which lies just before it: both are prefetched.
+        let mut merge = |i: usize| {
+            let lv = &vertices[i];
+            let behind = Neighbour::towards_light(lv.path_length, lv.after_surface);
+            if Gather::Blend.merge_at(behind, Neighbour::Surface) != VmHere::Valid {
+                return;
+            }
+            // Stored just before: the predecessor the tentative rays would leave from.
+            let q = lv.after_surface.then(|| &vertices[i - 1]);
+            let b = q.map_or(1.0, |q| {
+                self.ramp
+                    .vcm_probability(q.position.distance(hit.position) / w.radius)
+            });
+            match q {
+                Some(q) if b < 1.0 && (b <= 0.0 || choice.next_f32() >= b) => {
+                    self.upg
+                        .through_predecessor(w, (state, hit, bsdf), q, tentative, stats);
                 }
-                // Stored just before: the predecessor the tentative rays would leave from.
-                let q = lv.after_surface.then(|| &vertices[i - 1]);
-                let b = q.map_or(1.0, |q| {
-                    self.ramp
-                        .vcm_probability(q.position.distance(hit.position) / w.radius)
-                });
-                match q {
-                    Some(q) if b < 1.0 && (b <= 0.0 || choice.next_f32() >= b) => {
-                        self.upg
-                            .through_predecessor(w, (state, hit, bsdf), q, tentative, stats);
+                _ => {
+                    let eval = bsdf.eval(lv.wo);
+                    if eval.f.is_black() {
+                        return;
                     }
-                    _ => {
-                        let eval = bsdf.eval(lv.wo);
-                        if eval.f.is_black() {
-                            continue;
-                        }
-                        tentative.count_density_merge();
-                        // 001 eqs. (38)-(39), as vcm.rs's density-estimate merge weighs.
-                        let weight = w.merge(
-                            &lv.mis,
-                            &state.mis_at(w, eval.rev_pdf_w),
-                            (eval.pdf_w, eval.rev_pdf_w),
-                            w.vm_factor,
-                            state.density,
-                        );
-                        density += eval.f * lv.throughput * weight;
-                    }
+                    tentative.count_density_merge();
+                    // 001 eqs. (38)-(39), as vcm.rs's density-estimate merge weighs.
+                    let weight = w.merge(
+                        &lv.mis,
+                        &state.mis_at(w, eval.rev_pdf_w),
+                        (eval.pdf_w, eval.rev_pdf_w),
+                        w.vm_factor,
+                        state.density,
+                    );
+                    density += eval.f * lv.throughput * weight;
                 }
             }
+        };
+        gathered.grid.query_batches(hit.position, |batch| {
+            gathered.gather_batch(batch, within, 0..=1, &mut merge);
         });
         density * w.vm_normalization + self.upg.estimate(tentative, stats) * (1.0 / w.light_paths)
     }

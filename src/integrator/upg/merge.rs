@@ -55,21 +55,26 @@ impl Gathered<'_> {
     }
 
     /// Gathers the light vertices of a query's `batch` that `gathers` keeps, in order, each by
-    /// `gather`. The light vertex `back` steps before each kept one along its sub-path (the
-    /// vertex its merge reads whole) is prefetched first: a merge waits on Embree (its link's
-    /// shadow ray, its tentative rays), so the misses of the later merges' vertices, read at
-    /// random, overlap the earlier merges instead of each being waited for.
-    fn gather_batch(
+    /// `gather`. The light vertices `back` steps before each kept one along its sub-path (those
+    /// its merge reads whole: its predecessor, itself, or both) are prefetched first: a merge
+    /// waits on Embree (its link's shadow ray, its tentative rays), so the misses of the later
+    /// merges' vertices, read at random, overlap the earlier merges instead of each being
+    /// waited for.
+    pub(super) fn gather_batch(
         &self,
         batch: &[u32],
         gathers: impl FnMut(u32) -> bool,
-        back: usize,
+        back: std::ops::RangeInclusive<usize>,
         mut gather: impl FnMut(usize),
     ) {
         let mut found = [0u32; QUERY_BATCH];
         let mut len = 0;
         for i in kept(batch, gathers) {
-            self.vertices[i as usize - back].prefetch();
+            for step in back.clone() {
+                if let Some(v) = (i as usize).checked_sub(step) {
+                    self.vertices[v].prefetch();
+                }
+            }
             found[len] = i;
             len += 1;
         }
@@ -161,7 +166,7 @@ impl<'s> UpgMerges<'s> {
         };
         // The eye sub-path's radius: every technique of the path weighs with it.
         gathered.query(w, hit.position, |batch| {
-            gathered.gather_batch(batch, gathers, 1, &mut gather);
+            gathered.gather_batch(batch, gathers, 1..=1, &mut gather);
         });
         self.estimate_from(Side::Light, tentative, stats)
     }
@@ -241,7 +246,7 @@ impl<'s> UpgMerges<'s> {
             );
         };
         gathered.query(w, position, |batch| {
-            gathered.gather_batch(batch, gathers, 0, &mut gather);
+            gathered.gather_batch(batch, gathers, 0..=0, &mut gather);
         });
         let before = tentative.counters.merges;
         let sum = self.estimate_from(Side::Camera, tentative, stats);
