@@ -15,6 +15,9 @@ use vmerge::frame::Frame;
 use vmerge::sampling::{cosine_hemisphere, uniform_sphere, Rng, Stream};
 use vmerge::scene::{self, LoadOptions};
 
+mod common;
+use common::{best_mrays, paired_ratio};
+
 /// Rays per workload: a multiple of the packet width.
 const RAYS: usize = 100_000;
 /// Timed rounds of the summary table.
@@ -299,20 +302,6 @@ fn round_times<const N: usize>(
         }
     }
     times
-}
-
-/// Million rays per second in the best round.
-fn best_mrays(times: &[f64], rays: usize) -> Option<f64> {
-    let best = times.iter().copied().fold(f64::INFINITY, f64::min);
-    best.is_finite().then(|| rays as f64 / best / 1e6)
-}
-
-/// The median over rounds of `a`'s time over `b`'s in the same round: a ratio of neighbours
-/// in time, which a slow spell of the machine shifts far less than it shifts either time.
-fn paired_ratio(a: &[f64], b: &[f64]) -> Option<f64> {
-    let mut ratios: Vec<f64> = a.iter().zip(b).map(|(a, b)| a / b).collect();
-    ratios.sort_by(f64::total_cmp);
-    (!ratios.is_empty()).then(|| ratios[ratios.len() / 2])
 }
 
 fn benches(c: &mut Criterion) {
