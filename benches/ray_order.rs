@@ -119,6 +119,9 @@ fn short_name(path: &Path) -> String {
         .flat_map(|d| d.iter().rev().take(2))
         .map(|c| c.to_string_lossy())
         .collect();
+    if folders.is_empty() {
+        return path.display().to_string();
+    }
     folders.into_iter().rev().collect::<Vec<_>>().join("/")
 }
 
